@@ -1,0 +1,2 @@
+//! The `primfit` command-line tool.
+fn main() {}

@@ -1,0 +1,23 @@
+//! Primitive **types** (the thesis's atlas, §3.1): surfaces in their own local frame.
+//!
+//! A [`Shape`] knows its sizes and nothing about where it sits in a scene; a
+//! [`crate::Primitive`] places it with a [`crate::Pose`]. Every shape offers:
+//! deterministic, area-uniform surface samples at a given spacing; the exact
+//! closest point on (and distance to) its surface; a triangle mesh for export.
+//!
+//! Local-frame conventions (all lengths in scene units before the pose's scale):
+//!
+//! | type | surface in its local frame |
+//! |---|---|
+//! | `Disk { diameter }` | the disk of radius `diameter/2` in the plane z = 0, centred at the origin, normal +z |
+//! | `Square { side }` | the square `[-side/2, side/2]²` in the plane z = 0, normal +z |
+//! | `Cylinder { length, radius }` | the open tube of radius `radius` around the z axis, z ∈ `[-length/2, length/2]` |
+//! | `Elbow { bend, radius }` | a quarter torus: tube of radius `radius` around the centre-line arc of radius `bend` in the plane z = 0, from (bend, 0, 0) (tangent +y) to (0, bend, 0) (tangent −x); open ends |
+//! | `Sphere { diameter }` | the sphere of radius `diameter/2` centred at the origin |
+//! | `Mesh(MeshShape)` | a triangle mesh in its own coordinates |
+
+mod shapes;
+mod trimesh;
+
+pub use shapes::*;
+pub use trimesh::TriMesh;

@@ -1,0 +1,283 @@
+//! The [`Shape`] enum and its geometry. See the module docs of [`crate::atlas`] for the
+//! local-frame conventions.
+
+use std::sync::Arc;
+
+use nalgebra::Point3;
+use serde_json::{Map, Value};
+
+use super::TriMesh;
+use crate::{Error, Result};
+
+/// The name of a primitive type, as used on the command line and in JSON.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
+pub enum ShapeKind {
+    /// Flat round patch.
+    Disk,
+    /// Flat square patch.
+    Square,
+    /// Open tube segment.
+    Cylinder,
+    /// Quarter-torus pipe bend.
+    Elbow,
+    /// Sphere.
+    Sphere,
+    /// Arbitrary triangle mesh.
+    Mesh,
+}
+
+impl ShapeKind {
+    /// All kinds, in a fixed order.
+    pub const ALL: [ShapeKind; 6] = [
+        ShapeKind::Disk,
+        ShapeKind::Square,
+        ShapeKind::Cylinder,
+        ShapeKind::Elbow,
+        ShapeKind::Sphere,
+        ShapeKind::Mesh,
+    ];
+
+    /// The lowercase name used on the CLI and in JSON (`"square"`, …).
+    pub fn name(self) -> &'static str {
+        match self {
+            ShapeKind::Disk => "disk",
+            ShapeKind::Square => "square",
+            ShapeKind::Cylinder => "cylinder",
+            ShapeKind::Elbow => "elbow",
+            ShapeKind::Sphere => "sphere",
+            ShapeKind::Mesh => "mesh",
+        }
+    }
+
+    /// Parses a name as written by [`ShapeKind::name`].
+    pub fn parse(name: &str) -> Result<Self> {
+        ShapeKind::ALL
+            .into_iter()
+            .find(|k| k.name() == name.trim().to_ascii_lowercase())
+            .ok_or_else(|| {
+                Error::invalid(format!(
+                    "unknown primitive type {name:?} (known: disk, square, cylinder, elbow, sphere, mesh)"
+                ))
+            })
+    }
+}
+
+impl std::fmt::Display for ShapeKind {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(self.name())
+    }
+}
+
+/// A triangle mesh used as a primitive type, with what closest-point queries need.
+#[derive(Debug, Clone)]
+pub struct MeshShape {
+    /// Where the mesh came from (a file path or a generator name); written to JSON.
+    pub source: String,
+    /// The mesh, in its own local frame.
+    pub mesh: Arc<TriMesh>,
+}
+
+/// A primitive type with its sizes, in its local frame (see [`crate::atlas`]).
+#[derive(Debug, Clone)]
+pub enum Shape {
+    /// Round flat patch of the given diameter.
+    Disk {
+        /// Diameter.
+        diameter: f64,
+    },
+    /// Square flat patch of the given side.
+    Square {
+        /// Side length.
+        side: f64,
+    },
+    /// Open tube of the given length and radius.
+    Cylinder {
+        /// Length along the axis.
+        length: f64,
+        /// Tube radius.
+        radius: f64,
+    },
+    /// Quarter torus: the right-angle pipe bend.
+    Elbow {
+        /// Bend radius of the centre line.
+        bend: f64,
+        /// Tube radius.
+        radius: f64,
+    },
+    /// Sphere of the given diameter.
+    Sphere {
+        /// Diameter.
+        diameter: f64,
+    },
+    /// Arbitrary triangle mesh.
+    Mesh(MeshShape),
+}
+
+impl Shape {
+    /// The type's name.
+    pub fn kind(&self) -> ShapeKind {
+        match self {
+            Shape::Disk { .. } => ShapeKind::Disk,
+            Shape::Square { .. } => ShapeKind::Square,
+            Shape::Cylinder { .. } => ShapeKind::Cylinder,
+            Shape::Elbow { .. } => ShapeKind::Elbow,
+            Shape::Sphere { .. } => ShapeKind::Sphere,
+            Shape::Mesh(_) => ShapeKind::Mesh,
+        }
+    }
+
+    /// Checks that every size is finite and positive (and an elbow's tube fits inside its
+    /// bend: `radius < bend`), and that a mesh has at least one non-degenerate face.
+    pub fn validate(&self) -> Result<()> {
+        let positive = |name: &str, v: f64| {
+            if v.is_finite() && v > 0.0 {
+                Ok(())
+            } else {
+                Err(Error::invalid(format!(
+                    "{} {name} must be a positive finite length, got {v}",
+                    self.kind()
+                )))
+            }
+        };
+        match self {
+            Shape::Disk { diameter } | Shape::Sphere { diameter } => positive("diameter", *diameter),
+            Shape::Square { side } => positive("side", *side),
+            Shape::Cylinder { length, radius } => {
+                positive("length", *length)?;
+                positive("radius", *radius)
+            }
+            Shape::Elbow { bend, radius } => {
+                positive("bend", *bend)?;
+                positive("radius", *radius)?;
+                if radius >= bend {
+                    return Err(Error::invalid(format!(
+                        "elbow radius ({radius}) must be smaller than its bend radius ({bend})"
+                    )));
+                }
+                Ok(())
+            }
+            Shape::Mesh(m) => {
+                if m.mesh.faces.is_empty() || m.mesh.area() <= 0.0 {
+                    return Err(Error::invalid(format!("mesh {:?} has no faces with area", m.source)));
+                }
+                Ok(())
+            }
+        }
+    }
+
+    /// The sizes as the JSON object of DESIGN §3 (`{"side": 1.0}`, `{"length": …, "radius": …}`,
+    /// `{"source": "…"}` for meshes).
+    pub fn sizes_json(&self) -> Value {
+        let mut m = Map::new();
+        let mut put = |k: &str, v: Value| {
+            m.insert(k.to_string(), v);
+        };
+        match self {
+            Shape::Disk { diameter } | Shape::Sphere { diameter } => put("diameter", (*diameter).into()),
+            Shape::Square { side } => put("side", (*side).into()),
+            Shape::Cylinder { length, radius } => {
+                put("length", (*length).into());
+                put("radius", (*radius).into());
+            }
+            Shape::Elbow { bend, radius } => {
+                put("bend", (*bend).into());
+                put("radius", (*radius).into());
+            }
+            Shape::Mesh(ms) => put("source", ms.source.clone().into()),
+        }
+        Value::Object(m)
+    }
+
+    /// The number of continuous size parameters (for the compactness measure).
+    pub fn size_parameter_count(&self) -> usize {
+        match self {
+            Shape::Cylinder { .. } | Shape::Elbow { .. } => 2,
+            Shape::Mesh(_) => 0,
+            _ => 1,
+        }
+    }
+
+    /// Surface area.
+    pub fn area(&self) -> f64 {
+        use std::f64::consts::PI;
+        match self {
+            Shape::Disk { diameter } => PI * diameter * diameter / 4.0,
+            Shape::Square { side } => side * side,
+            Shape::Cylinder { length, radius } => 2.0 * PI * radius * length,
+            // Pappus: (2π r) · (π/2 · R) for a quarter torus.
+            Shape::Elbow { bend, radius } => PI * PI * radius * bend,
+            Shape::Sphere { diameter } => PI * diameter * diameter,
+            Shape::Mesh(m) => m.mesh.area(),
+        }
+    }
+
+    /// Radius of a ball about the local origin that contains the whole surface.
+    pub fn bounding_radius(&self) -> f64 {
+        match self {
+            Shape::Disk { diameter } | Shape::Sphere { diameter } => diameter / 2.0,
+            Shape::Square { side } => side * std::f64::consts::FRAC_1_SQRT_2,
+            Shape::Cylinder { length, radius } => (radius * radius + length * length / 4.0).sqrt(),
+            Shape::Elbow { bend, radius } => bend + radius,
+            Shape::Mesh(m) => m.mesh.vertices.iter().map(|v| v.coords.norm()).fold(0.0, f64::max),
+        }
+    }
+
+    /// Deterministic, area-uniform samples of the surface with roughly `spacing` between
+    /// neighbours (local frame). At least one sample is always returned.
+    pub fn sample_surface(&self, spacing: f64) -> Vec<Point3<f64>> {
+        match self {
+            Shape::Square { side } => {
+                let n = ((side / spacing).ceil() as usize).max(1);
+                let step = side / n as f64;
+                let mut out = Vec::with_capacity(n * n);
+                for j in 0..n {
+                    for i in 0..n {
+                        out.push(Point3::new(
+                            -side / 2.0 + (i as f64 + 0.5) * step,
+                            -side / 2.0 + (j as f64 + 0.5) * step,
+                            0.0,
+                        ));
+                    }
+                }
+                out
+            }
+            _ => unimplemented!("atlas sampling for {}", self.kind()),
+        }
+    }
+
+    /// The closest point of the surface to `p` (local frame).
+    pub fn closest_point(&self, p: &Point3<f64>) -> Point3<f64> {
+        match self {
+            Shape::Square { side } => {
+                let h = side / 2.0;
+                Point3::new(p.x.clamp(-h, h), p.y.clamp(-h, h), 0.0)
+            }
+            _ => unimplemented!("atlas closest point for {}", self.kind()),
+        }
+    }
+
+    /// Euclidean distance from `p` to the surface (local frame).
+    pub fn distance(&self, p: &Point3<f64>) -> f64 {
+        (p - self.closest_point(p)).norm()
+    }
+
+    /// A triangle mesh of the surface for export (local frame), fine enough that its
+    /// deviation from the true surface is below 1 % of the shape's size.
+    pub fn triangulate(&self) -> TriMesh {
+        match self {
+            Shape::Square { side } => {
+                let h = side / 2.0;
+                TriMesh {
+                    vertices: vec![
+                        Point3::new(-h, -h, 0.0),
+                        Point3::new(h, -h, 0.0),
+                        Point3::new(h, h, 0.0),
+                        Point3::new(-h, h, 0.0),
+                    ],
+                    faces: vec![[0, 1, 2], [0, 2, 3]],
+                }
+            }
+            _ => unimplemented!("atlas triangulation for {}", self.kind()),
+        }
+    }
+}

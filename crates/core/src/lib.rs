@@ -1,0 +1,50 @@
+//! # primfit-core
+//!
+//! Represent a whole 3D point cloud with geometric primitives only, by inferring which
+//! members of a large, fixed, discrete set of candidate primitives **exist**
+//! (Jared Glover-style discretisation of the reference thesis, `shared/reference/thesis.txt`).
+//!
+//! Data flows one way:
+//!
+//! ```text
+//! file ─► PointCloud ─► Lattice (candidates) ─► chamfer::Coefficients ─► solve ─► existence
+//!      ─► primitives ─► outputs (JSON, mesh PLY, metrics)
+//! ```
+//!
+//! | module | concept |
+//! |---|---|
+//! | [`atlas`] | primitive *types*: local-frame surfaces (disk, square, cylinder, elbow, sphere, mesh) |
+//! | [`primitive`] | a type placed in the scene by a [`primitive::Pose`] |
+//! | [`lattice`] | the candidate set G = types × orientations × translation grid |
+//! | [`chamfer`] | the probabilistic chamfer distance: coefficients, value, gradient |
+//! | [`solve`] | projected L-BFGS over existence, thresholding, discrete polish |
+//! | [`synth`] | synthetic scenes with ground truth |
+//! | [`metrics`] | the measures of DESIGN §4 |
+//! | [`io`] | PLY and JSON |
+//!
+//! Units: every length is in the cloud's units (metres for the bundled data); distances
+//! inside losses are **squared** Euclidean, as in the thesis.
+#![forbid(unsafe_code)]
+
+pub use nalgebra as na;
+
+pub mod atlas;
+pub mod chamfer;
+pub mod cloud;
+pub mod error;
+pub mod fit;
+pub mod io;
+pub mod lattice;
+pub mod metrics;
+pub mod primitive;
+pub mod solve;
+pub mod spatial;
+pub mod synth;
+
+pub use atlas::{Shape, ShapeKind, TriMesh};
+pub use cloud::PointCloud;
+pub use error::{Error, Result};
+pub use primitive::{Pose, Primitive};
+
+/// The library version, written into every `result.json` as `"primfit"`.
+pub const VERSION: &str = env!("CARGO_PKG_VERSION");
