@@ -1,1 +1,557 @@
-//! (in progress)
+//! The probabilistic chamfer distance (thesis ch. 5–6, DESIGN §2): coefficients, value
+//! and exact gradient over existence probabilities `p ∈ [0, 1]^N`.
+//!
+//! `L(p) = w_prim · Σ_i p_i g_i + w_point · Σ_y E_y(p)` where
+//!
+//! * `g_i = Σ_{x∈σ_i} min_{y∈D} ‖x − y‖²` (thesis eq. 6.1), and
+//! * `E_y` is the expected squared distance from `y` to the nearest existing sample
+//!   (thesis eq. 5.14), with the tail cost `d_cap` when nothing exists:
+//!   `E_y = Σ_k d_k q_k Π_{l<k}(1 − q_l) + Π_all(1 − q_l) · d_cap` over `y`'s sorted
+//!   entries `(owner, d_k)`, `q_k = p_owner(k)`.
+//!
+//! Two point models decide what the entries are ([`PointModel`]); the approximations α
+//! (samples kept per candidate) and β (candidates kept per point) of thesis §6.2 bound
+//! their number. Coefficients are computed **once** ([`Coefficients::build`]): each
+//! evaluation afterwards is pure arithmetic over flat arrays ([`Evaluator`]).
+//!
+//! Memory: one entry is a `u32` candidate id plus an `f64` squared distance, stored as
+//! two flat arrays: **12 bytes per (point, candidate) entry**, plus 8 bytes per point
+//! for the row offsets.
+
+use std::ops::Range;
+
+use nalgebra::Point3;
+use rayon::prelude::*;
+
+use crate::progress::Progress;
+use crate::spatial::PointIndex;
+use crate::{Error, Result};
+
+/// What the loss needs to know about candidates: their finite sample sets σ_i.
+///
+/// Implemented by [`crate::lattice::CandidateSet`] (shared local templates) and by
+/// [`SampleSets`] (explicit samples with owners).
+pub trait CandidateGeometry: Sync {
+    /// Number of candidates N.
+    fn len(&self) -> usize;
+    /// True when there are no candidates.
+    fn is_empty(&self) -> bool {
+        self.len() == 0
+    }
+    /// M_i, the number of samples of candidate `i`.
+    fn sample_count(&self, i: usize) -> usize;
+    /// Candidate `i`'s samples in scene coordinates, written into `out` (cleared first).
+    fn scene_samples(&self, i: usize, out: &mut Vec<Point3<f64>>);
+    /// A ball `(centre, radius)` containing all samples of candidate `i`.
+    fn bounding_ball(&self, i: usize) -> (Point3<f64>, f64);
+    /// `(sample index, squared distance)` of candidate `i`'s sample nearest to `y`.
+    fn nearest_sample(&self, i: usize, y: &Point3<f64>) -> (u32, f64);
+    /// The `k` samples of candidate `i` nearest to `y` (all when `k` is `None`), sorted by
+    /// (squared distance, sample index), written into `out` (cleared first).
+    fn nearest_samples(&self, i: usize, y: &Point3<f64>, k: Option<usize>, out: &mut Vec<(u32, f64)>);
+}
+
+/// How the point term models which samples exist (DESIGN §2).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum PointModel {
+    /// A candidate's samples exist together, with its probability (exact expectation of
+    /// the binary chamfer under independent Bernoulli existences). One entry per
+    /// (point, candidate): each candidate's nearest sample.
+    #[default]
+    Existence,
+    /// Every sample is kept independently with its owner's probability (thesis eq. 5.14).
+    /// Up to α entries per (point, candidate).
+    Independent,
+}
+
+impl PointModel {
+    /// Name used on the CLI and in JSON.
+    pub fn name(self) -> &'static str {
+        match self {
+            PointModel::Existence => "existence",
+            PointModel::Independent => "independent",
+        }
+    }
+    /// Parses `"existence"` or `"independent"`.
+    pub fn parse(s: &str) -> Result<Self> {
+        match s {
+            "existence" => Ok(PointModel::Existence),
+            "independent" => Ok(PointModel::Independent),
+            other => Err(Error::invalid(format!("unknown point model {other:?} (existence|independent)"))),
+        }
+    }
+}
+
+/// Options of the probabilistic chamfer.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ChamferOptions {
+    /// Point-term model.
+    pub model: PointModel,
+    /// α: samples kept per (point, candidate) for [`PointModel::Independent`]; `None` = all.
+    pub alpha: Option<usize>,
+    /// β: candidates kept per point (those whose nearest sample is closest); `None` = all.
+    pub beta: Option<usize>,
+    /// `d_cap` (squared distance): cost of a point that no existing candidate explains.
+    pub cap: f64,
+    /// Weight of the primitive term.
+    pub primitive_weight: f64,
+    /// Weight of the point term.
+    pub point_weight: f64,
+}
+
+impl Default for ChamferOptions {
+    fn default() -> Self {
+        ChamferOptions {
+            model: PointModel::Existence,
+            alpha: None,
+            beta: None,
+            cap: 0.0,
+            primitive_weight: 1.0,
+            point_weight: 1.0,
+        }
+    }
+}
+
+impl ChamferOptions {
+    /// Checks ranges (α, β ≥ 1; cap, weights finite and ≥ 0).
+    pub fn validate(&self) -> Result<()> {
+        if self.alpha == Some(0) || self.beta == Some(0) {
+            return Err(Error::invalid("alpha and beta must be at least 1 (or unlimited)"));
+        }
+        if !(self.cap.is_finite() && self.cap >= 0.0) {
+            return Err(Error::invalid(format!("cap must be finite and ≥ 0, got {}", self.cap)));
+        }
+        for (n, w) in [("primitive", self.primitive_weight), ("point", self.point_weight)] {
+            if !(w.is_finite() && w >= 0.0) {
+                return Err(Error::invalid(format!("{n} weight must be finite and ≥ 0, got {w}")));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// Precomputed coefficients of the probabilistic chamfer for one cloud and candidate set.
+///
+/// Row `j` (input point `y_j`) holds entries `offsets[j]..offsets[j+1]` of `cand`/`dist`,
+/// sorted by ascending squared distance.
+#[derive(Debug, Clone)]
+pub struct Coefficients {
+    /// Primitive-term coefficients g_i (eq. 6.1).
+    pub g: Vec<f64>,
+    /// Row offsets, length J + 1.
+    pub offsets: Vec<usize>,
+    /// Owner candidate of each entry.
+    pub cand: Vec<u32>,
+    /// Squared distance of each entry.
+    pub dist: Vec<f64>,
+    /// The options the coefficients were built with.
+    pub options: ChamferOptions,
+    /// Longest row.
+    pub max_row: usize,
+}
+
+/// Points per parallel work item when building coefficients.
+const BUILD_CHUNK: usize = 1024;
+
+impl Coefficients {
+    /// Computes g and the sorted point entries (thesis algorithms 4 and 6) in parallel.
+    pub fn build(
+        cloud: &[Point3<f64>],
+        geometry: &impl CandidateGeometry,
+        options: &ChamferOptions,
+        progress: &dyn Progress,
+    ) -> Result<Self> {
+        options.validate()?;
+        let n = geometry.len();
+        if n > u32::MAX as usize {
+            return Err(Error::TooLarge(format!("{n} candidates (at most {})", u32::MAX)));
+        }
+        let cloud_index = PointIndex::new(cloud);
+        progress.start("primitive term", n as u64);
+        let g = primitive_coefficients(&cloud_index, geometry, progress);
+        progress.finish();
+
+        progress.start("point term", cloud.len() as u64);
+        let centres = CentreIndex::new(geometry);
+        let rows: Vec<(Vec<usize>, Vec<u32>, Vec<f64>)> = cloud
+            .par_chunks(BUILD_CHUNK)
+            .map(|chunk| {
+                let mut builder = RowBuilder::new(geometry, &centres, options);
+                let mut lens = Vec::with_capacity(chunk.len());
+                let (mut c, mut d) = (Vec::new(), Vec::new());
+                for y in chunk {
+                    let before = c.len();
+                    builder.push_row(y, &mut c, &mut d);
+                    lens.push(c.len() - before);
+                }
+                progress.advance(chunk.len() as u64);
+                (lens, c, d)
+            })
+            .collect();
+        progress.finish();
+
+        let total: usize = rows.iter().map(|r| r.1.len()).sum();
+        let mut offsets = Vec::with_capacity(cloud.len() + 1);
+        let mut cand = Vec::with_capacity(total);
+        let mut dist = Vec::with_capacity(total);
+        offsets.push(0);
+        let mut max_row = 0;
+        for (lens, c, d) in rows {
+            for l in lens {
+                max_row = max_row.max(l);
+                offsets.push(offsets.last().copied().unwrap_or(0) + l);
+            }
+            cand.extend_from_slice(&c);
+            dist.extend_from_slice(&d);
+        }
+        Ok(Coefficients { g, offsets, cand, dist, options: options.clone(), max_row })
+    }
+
+    /// Number of candidates N.
+    pub fn candidates(&self) -> usize {
+        self.g.len()
+    }
+    /// Number of input points J.
+    pub fn points(&self) -> usize {
+        self.offsets.len() - 1
+    }
+    /// Number of (point, candidate[, sample]) entries.
+    pub fn entries(&self) -> usize {
+        self.cand.len()
+    }
+    /// Bytes per entry of the point term (candidate id + squared distance).
+    pub const BYTES_PER_ENTRY: usize = std::mem::size_of::<u32>() + std::mem::size_of::<f64>();
+    /// Heap bytes held by the coefficients.
+    pub fn bytes(&self) -> usize {
+        self.entries() * Self::BYTES_PER_ENTRY
+            + self.offsets.len() * std::mem::size_of::<usize>()
+            + self.g.len() * std::mem::size_of::<f64>()
+    }
+    /// Entry range of point `j`.
+    #[inline]
+    pub fn row(&self, j: usize) -> Range<usize> {
+        self.offsets[j]..self.offsets[j + 1]
+    }
+}
+
+/// g_i for every candidate: sum over its samples of the squared distance to the nearest
+/// input point (thesis algorithm 4).
+fn primitive_coefficients(
+    cloud_index: &PointIndex,
+    geometry: &impl CandidateGeometry,
+    progress: &dyn Progress,
+) -> Vec<f64> {
+    (0..geometry.len())
+        .into_par_iter()
+        .map_init(Vec::new, |buf, i| {
+            geometry.scene_samples(i, buf);
+            let s = buf.iter().map(|x| cloud_index.nearest(x).map_or(f64::INFINITY, |r| r.1)).sum();
+            progress.advance(1);
+            s
+        })
+        .collect()
+}
+
+/// A KD-tree over candidate bounding-ball centres, for finding the candidates near a point.
+struct CentreIndex {
+    index: PointIndex,
+    max_radius: f64,
+    extent: f64,
+}
+
+impl CentreIndex {
+    fn new(geometry: &impl CandidateGeometry) -> Self {
+        let balls: Vec<(Point3<f64>, f64)> = (0..geometry.len()).map(|i| geometry.bounding_ball(i)).collect();
+        let centres: Vec<Point3<f64>> = balls.iter().map(|b| b.0).collect();
+        let max_radius = balls.iter().map(|b| b.1).fold(0.0, f64::max);
+        let extent = crate::cloud::bounds_of(&centres).map_or(0.0, |(lo, hi)| (hi - lo).norm());
+        CentreIndex { index: PointIndex::new(&centres), max_radius, extent }
+    }
+}
+
+/// Builds the sorted entries of one point at a time, reusing its buffers.
+struct RowBuilder<'a, G: CandidateGeometry> {
+    geometry: &'a G,
+    centres: &'a CentreIndex,
+    options: &'a ChamferOptions,
+    near: Vec<(u32, f64)>,
+    samples: Vec<(u32, f64)>,
+    entries: Vec<(f64, u32, u32)>,
+}
+
+impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
+    fn new(geometry: &'a G, centres: &'a CentreIndex, options: &'a ChamferOptions) -> Self {
+        RowBuilder { geometry, centres, options, near: Vec::new(), samples: Vec::new(), entries: Vec::new() }
+    }
+
+    /// Appends the entries of point `y` to `cand`/`dist`.
+    fn push_row(&mut self, y: &Point3<f64>, cand: &mut Vec<u32>, dist: &mut Vec<f64>) {
+        self.select_candidates(y);
+        self.entries.clear();
+        match self.options.model {
+            PointModel::Existence => {
+                self.entries.extend(self.near.iter().map(|&(i, d)| (d, i, 0)));
+            }
+            PointModel::Independent => {
+                for &(i, _) in &self.near {
+                    self.geometry.nearest_samples(i as usize, y, self.options.alpha, &mut self.samples);
+                    self.entries.extend(self.samples.iter().map(|&(s, d)| (d, i, s)));
+                }
+            }
+        }
+        // (distance, candidate, sample): ties never change the value (DESIGN §2) but a
+        // total order keeps the arrays deterministic.
+        self.entries.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        for &(d, i, _) in &self.entries {
+            cand.push(i);
+            dist.push(d);
+        }
+    }
+
+    /// Fills `self.near` with the β candidates whose nearest sample is closest to `y`,
+    /// as `(candidate, squared distance of its nearest sample)`, ties to the lower index.
+    fn select_candidates(&mut self, y: &Point3<f64>) {
+        let n = self.geometry.len();
+        let beta = self.options.beta.unwrap_or(usize::MAX);
+        self.near.clear();
+        if beta >= n {
+            self.near.extend((0..n).map(|i| (i as u32, self.geometry.nearest_sample(i, y).1)));
+        } else {
+            self.expanding_search(y, beta);
+        }
+        let by_distance = |a: &(u32, f64), b: &(u32, f64)| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0));
+        if self.near.len() > beta {
+            self.near.select_nth_unstable_by(beta - 1, by_distance);
+            self.near.truncate(beta);
+        }
+    }
+
+    /// Grows a search radius ρ until at least β candidates have their nearest sample
+    /// within ρ: any candidate with a sample within ρ has its centre within ρ + R_max, so
+    /// the β best are then all among those retrieved.
+    fn expanding_search(&mut self, y: &Point3<f64>, beta: usize) {
+        let c = self.centres;
+        let mut rho = self.options.cap.sqrt().max(c.max_radius * 0.5).max(1e-9);
+        loop {
+            let reach = rho + c.max_radius;
+            self.near.clear();
+            for (i, _) in c.index.within(y, reach * reach) {
+                self.near.push((i, self.geometry.nearest_sample(i as usize, y).1));
+            }
+            let inside = self.near.iter().filter(|r| r.1 <= rho * rho).count();
+            let everything = self.near.len() == self.geometry.len();
+            if inside >= beta || everything || rho > 4.0 * (c.extent + c.max_radius) + 1.0 {
+                if !everything && inside < beta {
+                    // Past the whole extent: every candidate is within reach.
+                    self.near.clear();
+                    let n = self.geometry.len();
+                    self.near.extend((0..n).map(|i| (i as u32, self.geometry.nearest_sample(i, y).1)));
+                }
+                return;
+            }
+            rho *= 2.0;
+        }
+    }
+}
+
+/// The two terms of the loss and their weighted total.
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct LossValue {
+    /// Σ_i p_i g_i (unweighted).
+    pub primitive: f64,
+    /// Σ_y E_y (unweighted).
+    pub point: f64,
+    /// `w_prim · primitive + w_point · point`.
+    pub total: f64,
+}
+
+/// Evaluates the loss and its gradient over precomputed [`Coefficients`] without allocating.
+///
+/// Points are split into a fixed number of blocks (a function of the problem size only,
+/// never of the thread count), each with its own gradient accumulator; blocks are summed in
+/// a fixed order, so results are bit-identical whatever the number of rayon threads.
+pub struct Evaluator<'c> {
+    coeffs: &'c Coefficients,
+    blocks: Vec<Range<usize>>,
+    block_grad: Vec<Vec<f64>>,
+    block_value: Vec<f64>,
+    scratch: Vec<Vec<f64>>,
+}
+
+/// Upper bound on the f64 cells of all block gradient accumulators together (256 MiB).
+const MAX_ACCUMULATOR_CELLS: usize = 1 << 25;
+
+impl<'c> Evaluator<'c> {
+    /// Allocates the work buffers for `coeffs`.
+    pub fn new(coeffs: &'c Coefficients) -> Self {
+        let j = coeffs.points();
+        let n = coeffs.candidates().max(1);
+        let count = j.div_ceil(2048).clamp(1, 64).min((MAX_ACCUMULATOR_CELLS / n).max(1));
+        let per = j.div_ceil(count).max(1);
+        let blocks: Vec<Range<usize>> = (0..count).map(|b| (b * per).min(j)..((b + 1) * per).min(j)).collect();
+        Evaluator {
+            coeffs,
+            block_grad: vec![vec![0.0; coeffs.candidates()]; blocks.len()],
+            block_value: vec![0.0; blocks.len()],
+            scratch: vec![vec![0.0; coeffs.max_row]; blocks.len()],
+            blocks,
+        }
+    }
+
+    /// The coefficients evaluated.
+    pub fn coefficients(&self) -> &Coefficients {
+        self.coeffs
+    }
+
+    /// Loss at `p` (length N, values in [0, 1]); writes ∂total/∂p into `grad` (length N).
+    pub fn evaluate(&mut self, p: &[f64], grad: &mut [f64]) -> LossValue {
+        let c = self.coeffs;
+        debug_assert_eq!(p.len(), c.candidates());
+        debug_assert_eq!(grad.len(), c.candidates());
+        let cap = c.options.cap;
+        self.blocks
+            .par_iter()
+            .zip(self.block_grad.par_iter_mut())
+            .zip(self.block_value.par_iter_mut())
+            .zip(self.scratch.par_iter_mut())
+            .for_each(|(((range, bg), bv), erd)| {
+                bg.iter_mut().for_each(|g| *g = 0.0);
+                let mut value = 0.0;
+                for j in range.clone() {
+                    let r = c.row(j);
+                    value += point_expectation(&c.cand[r.clone()], &c.dist[r], p, cap, erd, bg);
+                }
+                *bv = value;
+            });
+        let point: f64 = self.block_value.iter().sum();
+        let primitive: f64 = c.g.iter().zip(p).map(|(g, p)| g * p).sum();
+        let (wp, wq) = (c.options.primitive_weight, c.options.point_weight);
+        let block_grad = &self.block_grad;
+        grad.par_chunks_mut(4096).enumerate().for_each(|(k, out)| {
+            let start = k * 4096;
+            for (o, (i, gi)) in out.iter_mut().zip(c.g[start..].iter().enumerate()) {
+                let mut s = 0.0;
+                for bg in block_grad {
+                    s += bg[start + i];
+                }
+                *o = wp * gi + wq * s;
+            }
+        });
+        LossValue { primitive, point, total: wp * primitive + wq * point }
+    }
+
+    /// The loss at a binary scene (`exists[i]` = candidate i exists): the exact binary
+    /// chamfer under the same entries and cap.
+    pub fn binary_value(&mut self, exists: &[bool]) -> LossValue {
+        let p: Vec<f64> = exists.iter().map(|&e| if e { 1.0 } else { 0.0 }).collect();
+        let mut grad = vec![0.0; p.len()];
+        self.evaluate(&p, &mut grad)
+    }
+}
+
+/// `E_y` for one point's sorted entries, adding `∂E_y/∂p_i` into `grad`.
+///
+/// Backward pass: `ERD_K = d_cap`, `ERD_{k-1} = q_k d_k + (1 − q_k) ERD_k` (thesis eq. 6.6);
+/// forward pass: `∂E_y/∂q_k = Π_{l<k}(1 − q_l) · (d_k − ERD_k)`, summed per owner.
+#[inline]
+fn point_expectation(cand: &[u32], dist: &[f64], p: &[f64], cap: f64, erd: &mut [f64], grad: &mut [f64]) -> f64 {
+    let k = cand.len();
+    let mut r = cap;
+    for m in (0..k).rev() {
+        erd[m] = r; // ERD after entry m
+        let q = p[cand[m] as usize];
+        r = q * dist[m] + (1.0 - q) * r;
+    }
+    let mut survive = 1.0;
+    for m in 0..k {
+        let i = cand[m] as usize;
+        grad[i] += survive * (dist[m] - erd[m]);
+        survive *= 1.0 - p[i];
+        if survive == 0.0 {
+            break;
+        }
+    }
+    r
+}
+
+/// Explicit candidate sample sets: samples `(K, 3)` with an owner candidate each, as the
+/// Python API takes them. Samples keep their input order within a candidate (the α
+/// tie-break is the lower sample index).
+#[derive(Debug)]
+pub struct SampleSets {
+    samples: Vec<Point3<f64>>,
+    ranges: Vec<Range<usize>>,
+    indexes: Vec<PointIndex>,
+    balls: Vec<(Point3<f64>, f64)>,
+}
+
+impl SampleSets {
+    /// Groups `samples` by `owner` (each in `0..n`). Every candidate needs ≥ 1 sample.
+    pub fn new(samples: &[Point3<f64>], owner: &[usize], n: usize) -> Result<Self> {
+        if samples.len() != owner.len() {
+            return Err(Error::Shape(format!("{} samples but {} owners", samples.len(), owner.len())));
+        }
+        let mut counts = vec![0usize; n];
+        for (k, &o) in owner.iter().enumerate() {
+            if o >= n {
+                return Err(Error::invalid(format!("owner[{k}] = {o} is not a candidate index (N = {n})")));
+            }
+            counts[o] += 1;
+        }
+        if let Some(empty) = counts.iter().position(|&c| c == 0) {
+            return Err(Error::invalid(format!("candidate {empty} has no samples")));
+        }
+        let mut order: Vec<usize> = (0..samples.len()).collect();
+        order.sort_by_key(|&k| owner[k]); // stable: input order within a candidate
+        let sorted: Vec<Point3<f64>> = order.iter().map(|&k| samples[k]).collect();
+        let mut ranges = Vec::with_capacity(n);
+        let mut start = 0;
+        for c in counts {
+            ranges.push(start..start + c);
+            start += c;
+        }
+        let indexes = ranges.par_iter().map(|r| PointIndex::new(&sorted[r.clone()])).collect();
+        let balls = ranges
+            .iter()
+            .map(|r| {
+                let s = &sorted[r.clone()];
+                let centre = Point3::from(s.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>() / s.len() as f64);
+                (centre, s.iter().map(|p| (p - centre).norm()).fold(0.0, f64::max))
+            })
+            .collect();
+        Ok(SampleSets { samples: sorted, ranges, indexes, balls })
+    }
+}
+
+impl CandidateGeometry for SampleSets {
+    fn len(&self) -> usize {
+        self.ranges.len()
+    }
+    fn sample_count(&self, i: usize) -> usize {
+        self.ranges[i].len()
+    }
+    fn scene_samples(&self, i: usize, out: &mut Vec<Point3<f64>>) {
+        out.clear();
+        out.extend_from_slice(&self.samples[self.ranges[i].clone()]);
+    }
+    fn bounding_ball(&self, i: usize) -> (Point3<f64>, f64) {
+        self.balls[i]
+    }
+    fn nearest_sample(&self, i: usize, y: &Point3<f64>) -> (u32, f64) {
+        self.indexes[i].nearest(y).unwrap_or((0, f64::INFINITY))
+    }
+    fn nearest_samples(&self, i: usize, y: &Point3<f64>, k: Option<usize>, out: &mut Vec<(u32, f64)>) {
+        out.clear();
+        let s = &self.samples[self.ranges[i].clone()];
+        match k {
+            Some(k) if k < s.len() => out.extend(self.indexes[i].nearest_n(y, k)),
+            _ => {
+                out.extend(s.iter().enumerate().map(|(j, x)| (j as u32, (x - y).norm_squared())));
+                out.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+            }
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests;

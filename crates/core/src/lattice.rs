@@ -1,1 +1,356 @@
-//! (in progress)
+//! The candidate set G = types × orientations × translation grid (thesis §3.2), pruned by
+//! an occupancy prior.
+//!
+//! Every candidate of one shape shares a single [`Template`]: the shape's surface samples
+//! and a KD-tree over them **in the local frame** (thesis §6.2 footnote). A query point is
+//! mapped into a candidate's local frame instead of building a tree per candidate.
+
+use std::collections::HashSet;
+
+use nalgebra::{Point3, UnitQuaternion, Vector3};
+use rayon::prelude::*;
+
+use crate::atlas::{Shape, ShapeKind};
+use crate::chamfer::CandidateGeometry;
+use crate::spatial::PointIndex;
+use crate::{Error, PointCloud, Pose, Primitive, Result};
+
+/// What the lattice is made of. All lengths in scene units.
+#[derive(Debug, Clone)]
+pub struct LatticeSpec {
+    /// The primitive types with their sizes; one template each.
+    pub shapes: Vec<Shape>,
+    /// Translation step of the grid.
+    pub spacing: f64,
+    /// A point of the grid (translations are `origin + frame · spacing · (i, j, k)`).
+    pub origin: Point3<f64>,
+    /// Rotation of the lattice frame relative to the scene axes (identity = axis-aligned).
+    pub frame: UnitQuaternion<f64>,
+    /// Spacing of each candidate's surface samples σ_i.
+    pub sample_spacing: f64,
+}
+
+impl LatticeSpec {
+    /// Checks sizes and spacings.
+    pub fn validate(&self) -> Result<()> {
+        if self.shapes.is_empty() {
+            return Err(Error::invalid("the lattice needs at least one primitive type"));
+        }
+        for s in &self.shapes {
+            s.validate()?;
+        }
+        for (name, v) in [("spacing", self.spacing), ("sample spacing", self.sample_spacing)] {
+            if !(v.is_finite() && v > 0.0) {
+                return Err(Error::invalid(format!("lattice {name} must be a positive length, got {v}")));
+            }
+        }
+        if !self.origin.coords.iter().all(|c| c.is_finite()) {
+            return Err(Error::invalid("lattice origin must be finite"));
+        }
+        Ok(())
+    }
+}
+
+/// The orientation set of a type, in the lattice frame: the distinct axis-aligned
+/// placements of the shape (symmetric duplicates removed).
+///
+/// - square, disk: normal along z, x or y (3);
+/// - cylinder: axis along z, x or y (3);
+/// - elbow: plane normal along z, x or y, times the 4 quadrants (12);
+/// - sphere, mesh: the identity (1).
+pub fn orientations(kind: ShapeKind) -> Vec<UnitQuaternion<f64>> {
+    use std::f64::consts::FRAC_PI_2;
+    let axes = [
+        UnitQuaternion::identity(),                                   // local z → z
+        UnitQuaternion::from_axis_angle(&Vector3::y_axis(), FRAC_PI_2), // local z → x
+        UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -FRAC_PI_2), // local z → y
+    ];
+    match kind {
+        ShapeKind::Square | ShapeKind::Disk | ShapeKind::Cylinder => axes.to_vec(),
+        ShapeKind::Elbow => axes
+            .iter()
+            .flat_map(|a| {
+                (0..4).map(move |q| a * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q as f64 * FRAC_PI_2))
+            })
+            .collect(),
+        ShapeKind::Sphere | ShapeKind::Mesh => vec![UnitQuaternion::identity()],
+    }
+}
+
+/// One shape's canonical samples and their KD-tree, in the shape's local frame.
+#[derive(Debug)]
+pub struct Template {
+    /// The shape.
+    pub shape: Shape,
+    /// Local-frame surface samples.
+    pub samples: Vec<Point3<f64>>,
+    /// KD-tree over `samples`.
+    pub index: PointIndex,
+    /// Bounding radius of the samples about the local origin.
+    pub radius: f64,
+}
+
+impl Template {
+    /// Samples `shape` at `sample_spacing` and indexes the samples.
+    pub fn new(shape: Shape, sample_spacing: f64) -> Self {
+        let samples = shape.sample_surface(sample_spacing);
+        let index = PointIndex::new(&samples);
+        let radius = samples.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
+        Template { shape, samples, index, radius }
+    }
+}
+
+/// A finite set of candidate primitives sharing templates: the thesis's G.
+#[derive(Debug)]
+pub struct CandidateSet {
+    /// One template per shape.
+    pub templates: Vec<Template>,
+    /// Template of each candidate.
+    pub template_of: Vec<u32>,
+    /// Pose of each candidate (scale 1 on a lattice).
+    pub poses: Vec<Pose>,
+}
+
+impl CandidateSet {
+    /// A set from explicit `(template, pose)` pairs.
+    pub fn from_parts(templates: Vec<Template>, template_of: Vec<u32>, poses: Vec<Pose>) -> Result<Self> {
+        if template_of.len() != poses.len() {
+            return Err(Error::Shape(format!(
+                "{} template ids but {} poses",
+                template_of.len(),
+                poses.len()
+            )));
+        }
+        if let Some(bad) = template_of.iter().find(|t| **t as usize >= templates.len()) {
+            return Err(Error::invalid(format!("template id {bad} out of range ({} templates)", templates.len())));
+        }
+        Ok(CandidateSet { templates, template_of, poses })
+    }
+
+    /// Builds the lattice of `spec` around `cloud`, keeping a candidate only when input
+    /// points occupy a lattice cell within its reach (its bounding radius plus half a cell
+    /// diagonal) — the occupancy prior of thesis §6.
+    pub fn build(spec: &LatticeSpec, cloud: &PointCloud) -> Result<Self> {
+        spec.validate()?;
+        if cloud.is_empty() {
+            return Err(Error::invalid("cannot build a lattice around an empty cloud"));
+        }
+        let templates: Vec<Template> =
+            spec.shapes.par_iter().map(|s| Template::new(s.clone(), spec.sample_spacing)).collect();
+        let occupied = occupied_nodes(spec, &cloud.points);
+        let mut template_of = Vec::new();
+        let mut poses = Vec::new();
+        for (t, template) in templates.iter().enumerate() {
+            let nodes = dilate(&occupied, template.radius / spec.spacing + 0.5 * 3f64.sqrt());
+            let rotations = orientations(template.shape.kind());
+            for node in &nodes {
+                let translation = node_position(spec, node).coords;
+                for r in &rotations {
+                    template_of.push(t as u32);
+                    poses.push(Pose::new(spec.frame * r, translation));
+                }
+            }
+        }
+        Ok(CandidateSet { templates, template_of, poses })
+    }
+
+    /// Number of candidates N.
+    pub fn len(&self) -> usize {
+        self.poses.len()
+    }
+
+    /// True when there are no candidates.
+    pub fn is_empty(&self) -> bool {
+        self.poses.is_empty()
+    }
+
+    /// The template of candidate `i`.
+    #[inline]
+    pub fn template(&self, i: usize) -> &Template {
+        &self.templates[self.template_of[i] as usize]
+    }
+
+    /// Candidate `i` as a [`Primitive`].
+    pub fn primitive(&self, i: usize) -> Primitive {
+        Primitive::new(self.template(i).shape.clone(), self.poses[i])
+    }
+
+    /// Keeps only the candidates for which `keep(i)` is true (order preserved).
+    pub fn retain(&mut self, keep: &[bool]) {
+        let mut k = keep.iter();
+        self.template_of.retain(|_| *k.next().unwrap_or(&false));
+        let mut k = keep.iter();
+        self.poses.retain(|_| *k.next().unwrap_or(&false));
+    }
+}
+
+impl CandidateGeometry for CandidateSet {
+    fn len(&self) -> usize {
+        self.poses.len()
+    }
+    fn sample_count(&self, i: usize) -> usize {
+        self.template(i).samples.len()
+    }
+    fn scene_samples(&self, i: usize, out: &mut Vec<Point3<f64>>) {
+        let pose = &self.poses[i];
+        out.clear();
+        out.extend(self.template(i).samples.iter().map(|p| pose.to_scene(p)));
+    }
+    fn bounding_ball(&self, i: usize) -> (Point3<f64>, f64) {
+        let pose = &self.poses[i];
+        (Point3::from(pose.translation), self.template(i).radius * pose.scale)
+    }
+    #[inline]
+    fn nearest_sample(&self, i: usize, y: &Point3<f64>) -> (u32, f64) {
+        let pose = &self.poses[i];
+        let local = pose.to_local(y);
+        let (k, d2) = self.template(i).index.nearest(&local).unwrap_or((0, f64::INFINITY));
+        (k, d2 * pose.scale * pose.scale)
+    }
+    fn nearest_samples(&self, i: usize, y: &Point3<f64>, k: Option<usize>, out: &mut Vec<(u32, f64)>) {
+        let pose = &self.poses[i];
+        let local = pose.to_local(y);
+        let s2 = pose.scale * pose.scale;
+        let template = self.template(i);
+        out.clear();
+        match k {
+            Some(k) if k < template.samples.len() => {
+                out.extend(template.index.nearest_n(&local, k).into_iter().map(|(j, d)| (j, d * s2)));
+            }
+            _ => {
+                out.extend(
+                    template.samples.iter().enumerate().map(|(j, x)| (j as u32, (x - local).norm_squared() * s2)),
+                );
+                out.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+            }
+        }
+    }
+}
+
+type Node = [i32; 3];
+
+/// Grid coordinates of the lattice node nearest to `p`.
+fn node_of(spec: &LatticeSpec, p: &Point3<f64>) -> Node {
+    let local = spec.frame.inverse_transform_vector(&(p - spec.origin)) / spec.spacing;
+    [local.x.round() as i32, local.y.round() as i32, local.z.round() as i32]
+}
+
+/// Scene position of a lattice node.
+fn node_position(spec: &LatticeSpec, n: &Node) -> Point3<f64> {
+    let v = Vector3::new(n[0] as f64, n[1] as f64, n[2] as f64) * spec.spacing;
+    spec.origin + spec.frame * v
+}
+
+/// The set of nodes whose cell holds at least one input point, sorted for determinism.
+fn occupied_nodes(spec: &LatticeSpec, points: &[Point3<f64>]) -> Vec<Node> {
+    let mut nodes: Vec<Node> = points.par_iter().map(|p| node_of(spec, p)).collect();
+    nodes.par_sort_unstable();
+    nodes.dedup();
+    nodes
+}
+
+/// Every node within Euclidean grid distance `reach` (in cells) of an occupied node, sorted.
+fn dilate(occupied: &[Node], reach: f64) -> Vec<Node> {
+    let k = reach.floor() as i32;
+    let offsets: Vec<Node> = (-k..=k)
+        .flat_map(|i| (-k..=k).flat_map(move |j| (-k..=k).map(move |l| [i, j, l])))
+        .filter(|o| ((o[0] * o[0] + o[1] * o[1] + o[2] * o[2]) as f64) <= reach * reach)
+        .collect();
+    let set: HashSet<Node> = occupied
+        .iter()
+        .flat_map(|n| offsets.iter().map(move |o| [n[0] + o[0], n[1] + o[1], n[2] + o[2]]))
+        .collect();
+    let mut nodes: Vec<Node> = set.into_iter().collect();
+    nodes.sort_unstable();
+    nodes
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn spec() -> LatticeSpec {
+        LatticeSpec {
+            shapes: vec![Shape::Square { side: 1.0 }],
+            spacing: 0.5,
+            origin: Point3::origin(),
+            frame: UnitQuaternion::identity(),
+            sample_spacing: 0.1,
+        }
+    }
+
+    #[test]
+    fn orientation_counts() {
+        assert_eq!(orientations(ShapeKind::Square).len(), 3);
+        assert_eq!(orientations(ShapeKind::Elbow).len(), 12);
+        assert_eq!(orientations(ShapeKind::Sphere).len(), 1);
+        // Square normals cover the three axes.
+        let normals: Vec<Vector3<f64>> =
+            orientations(ShapeKind::Square).iter().map(|r| r * Vector3::z()).collect();
+        for axis in [Vector3::x(), Vector3::y(), Vector3::z()] {
+            assert!(normals.iter().any(|n| (n - axis).norm() < 1e-12));
+        }
+    }
+
+    #[test]
+    fn elbow_orientations_are_distinct() {
+        let elbow = Shape::Elbow { bend: 0.5, radius: 0.1 };
+        let probe = [Point3::new(0.5, 0.0, 0.1), Point3::new(0.3, 0.4, 0.0)];
+        let images: Vec<Vec<Point3<f64>>> =
+            orientations(elbow.kind()).iter().map(|r| probe.iter().map(|p| r * p).collect()).collect();
+        for a in 0..images.len() {
+            for b in a + 1..images.len() {
+                let same = images[a].iter().zip(&images[b]).all(|(p, q)| (p - q).norm() < 1e-9);
+                assert!(!same, "orientations {a} and {b} coincide");
+            }
+        }
+    }
+
+    #[test]
+    fn occupancy_keeps_only_candidates_near_points() {
+        let cloud = PointCloud::from_points(vec![Point3::new(0.1, 0.1, 0.0)]);
+        let set = CandidateSet::build(&spec(), &cloud).unwrap();
+        assert!(!set.is_empty());
+        let reach = set.templates[0].radius + 0.5 * 0.5 * 3f64.sqrt();
+        for p in &set.poses {
+            // Node of the point is the origin; every kept centre is within reach of it.
+            assert!(p.translation.norm() <= reach + 1e-9);
+            // Translations lie on the grid.
+            for c in p.translation.iter() {
+                assert!(((c / 0.5).round() * 0.5 - c).abs() < 1e-12);
+            }
+        }
+        // A far-away node is never a candidate.
+        assert!(set.poses.iter().all(|p| p.translation.norm() < 2.0));
+    }
+
+    #[test]
+    fn nearest_sample_matches_scene_brute_force() {
+        let cloud = PointCloud::from_points(vec![Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.3, 0.2)]);
+        let set = CandidateSet::build(&spec(), &cloud).unwrap();
+        let y = Point3::new(0.37, -0.21, 0.13);
+        let mut buf = Vec::new();
+        for i in 0..set.len() {
+            set.scene_samples(i, &mut buf);
+            let brute = buf.iter().map(|x| (x - y).norm_squared()).fold(f64::INFINITY, f64::min);
+            let (_, d) = set.nearest_sample(i, &y);
+            assert!((d - brute).abs() < 1e-12);
+            let mut all = Vec::new();
+            set.nearest_samples(i, &y, None, &mut all);
+            assert!((all[0].1 - brute).abs() < 1e-12);
+            assert_eq!(all.len(), buf.len());
+        }
+    }
+
+    #[test]
+    fn bad_specs_are_errors() {
+        let cloud = PointCloud::from_points(vec![Point3::origin()]);
+        let mut s = spec();
+        s.spacing = 0.0;
+        assert!(CandidateSet::build(&s, &cloud).is_err());
+        let mut s = spec();
+        s.shapes = vec![Shape::Square { side: -1.0 }];
+        assert!(CandidateSet::build(&s, &cloud).is_err());
+        assert!(CandidateSet::build(&spec(), &PointCloud::default()).is_err());
+    }
+}

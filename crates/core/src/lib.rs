@@ -37,6 +37,7 @@ pub mod io;
 pub mod lattice;
 pub mod metrics;
 pub mod primitive;
+pub mod progress;
 pub mod solve;
 pub mod spatial;
 pub mod synth;

@@ -1,1 +1,153 @@
-//! (in progress)
+//! [`PointIndex`]: exact nearest-neighbour queries over 3-D points.
+//!
+//! The only module that imports kiddo; the rest of the crate sees plain
+//! `(index, squared distance)` pairs. Distances returned here are **squared**.
+
+use std::num::NonZeroUsize;
+
+use kiddo::{ImmutableKdTree, SquaredEuclidean};
+use nalgebra::Point3;
+
+/// A static KD-tree over points (kiddo's `ImmutableKdTree<f64, 3>`), tolerant of empty input.
+pub struct PointIndex {
+    tree: Option<ImmutableKdTree<f64, 3>>,
+    len: usize,
+}
+
+impl std::fmt::Debug for PointIndex {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PointIndex").field("len", &self.len).finish()
+    }
+}
+
+fn as_array(p: &Point3<f64>) -> [f64; 3] {
+    [p.x, p.y, p.z]
+}
+
+impl PointIndex {
+    /// Builds the index (in parallel for large inputs). Item ids are positions in `points`.
+    ///
+    /// Points must be finite; at most `u32::MAX` points.
+    pub fn new(points: &[Point3<f64>]) -> Self {
+        let coords: Vec<[f64; 3]> = points.iter().map(as_array).collect();
+        let tree = if coords.is_empty() {
+            None
+        } else if coords.len() > 50_000 {
+            ImmutableKdTree::new_from_slice_parallel(&coords).ok()
+        } else {
+            ImmutableKdTree::new_from_slice(&coords).ok()
+        };
+        PointIndex { tree, len: points.len() }
+    }
+
+    /// Number of indexed points.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when no points are indexed.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// The nearest point: `(index, squared distance)`, or `None` when empty.
+    #[inline]
+    pub fn nearest(&self, q: &Point3<f64>) -> Option<(u32, f64)> {
+        let tree = self.tree.as_ref()?;
+        let r = tree.query(&as_array(q)).nearest_one::<SquaredEuclidean<f64>>().execute();
+        Some((r.item, r.distance))
+    }
+
+    /// The `k` nearest points sorted by (squared distance, index).
+    pub fn nearest_n(&self, q: &Point3<f64>, k: usize) -> Vec<(u32, f64)> {
+        let (Some(tree), Some(k)) = (self.tree.as_ref(), NonZeroUsize::new(k.min(self.len))) else {
+            return Vec::new();
+        };
+        let mut out: Vec<(u32, f64)> = tree
+            .query(&as_array(q))
+            .nearest_n::<SquaredEuclidean<f64>>(k)
+            .execute()
+            .into_iter()
+            .map(|r| (r.item, r.distance))
+            .collect();
+        out.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        out
+    }
+
+    /// Every point with squared distance ≤ `r2`, unsorted.
+    pub fn within(&self, q: &Point3<f64>, r2: f64) -> Vec<(u32, f64)> {
+        let Some(tree) = self.tree.as_ref() else { return Vec::new() };
+        tree.query(&as_array(q))
+            .within::<SquaredEuclidean<f64>>(r2)
+            .unsorted()
+            .execute()
+            .into_iter()
+            .map(|r| (r.item, r.distance))
+            .collect()
+    }
+}
+
+/// Median distance from a point to its nearest other point, estimated on at most
+/// `max_probe` evenly spaced points: the cloud's typical point spacing. `None` when fewer
+/// than two distinct points exist.
+pub fn median_spacing(points: &[Point3<f64>], index: &PointIndex, max_probe: usize) -> Option<f64> {
+    if points.len() < 2 {
+        return None;
+    }
+    let stride = (points.len() / max_probe.max(1)).max(1);
+    let mut d: Vec<f64> = points
+        .iter()
+        .step_by(stride)
+        .filter_map(|p| index.nearest_n(p, 2).get(1).map(|r| r.1.sqrt()))
+        .filter(|d| *d > 0.0)
+        .collect();
+    if d.is_empty() {
+        return None;
+    }
+    let mid = d.len() / 2;
+    d.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(d[mid])
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid() -> Vec<Point3<f64>> {
+        (0..5)
+            .flat_map(|i| (0..5).map(move |j| Point3::new(i as f64, j as f64, 0.0)))
+            .collect()
+    }
+
+    #[test]
+    fn queries_match_brute_force() {
+        let pts = grid();
+        let idx = PointIndex::new(&pts);
+        let q = Point3::new(1.2, 3.4, 0.5);
+        let mut brute: Vec<(u32, f64)> =
+            pts.iter().enumerate().map(|(i, p)| (i as u32, (p - q).norm_squared())).collect();
+        brute.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        assert_eq!(idx.nearest(&q).unwrap().0, brute[0].0);
+        assert_eq!(idx.nearest_n(&q, 4), brute[..4].to_vec());
+        let mut w: Vec<u32> = idx.within(&q, 1.5).into_iter().map(|r| r.0).collect();
+        w.sort();
+        let mut bw: Vec<u32> = brute.iter().filter(|r| r.1 <= 1.5).map(|r| r.0).collect();
+        bw.sort();
+        assert_eq!(w, bw);
+    }
+
+    #[test]
+    fn empty_index_answers_nothing() {
+        let idx = PointIndex::new(&[]);
+        assert!(idx.nearest(&Point3::origin()).is_none());
+        assert!(idx.nearest_n(&Point3::origin(), 3).is_empty());
+        assert!(idx.within(&Point3::origin(), 1.0).is_empty());
+    }
+
+    #[test]
+    fn median_spacing_of_unit_grid_is_one() {
+        let pts = grid();
+        let idx = PointIndex::new(&pts);
+        assert!((median_spacing(&pts, &idx, 100).unwrap() - 1.0).abs() < 1e-12);
+    }
+}
