@@ -1,1 +1,457 @@
-//! (in progress)
+//! The whole fitting pipeline: cloud → lattice → coefficients → solver → primitives.
+//!
+//! [`FitOptions`] holds what a user may set; [`Settings`] is every value actually used,
+//! with defaults derived from the cloud ([`Settings::resolve`]):
+//!
+//! | setting | default |
+//! |---|---|
+//! | `size` | the bounding-box diagonal ÷ 8, rounded down to 1, 2 or 5 × 10^k |
+//! | `spacing` | `size / 2` (the thesis's hallway: 1 m squares on a 0.5 m lattice) |
+//! | `radius` | `size / 10` (tube radius of cylinders and elbows) |
+//! | `bend` | `spacing` (elbow centre-line radius) |
+//! | `cap` | `spacing`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; `d_cap = cap²` |
+//! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
+//! | `beta` | 16 candidates per point |
+//! | `alpha` | 10 samples per candidate (thesis §6.3), `independent` model only |
+//! | lattice origin | the scene origin; frame: the scene axes |
+
+use std::time::Instant;
+
+use nalgebra::{Point3, UnitQuaternion};
+use serde_json::{Value, json};
+
+use crate::atlas::{MeshShape, Shape, ShapeKind, TriMesh};
+use crate::chamfer::{ChamferOptions, Coefficients, PointModel};
+use crate::lattice::{CandidateSet, LatticeSpec};
+use crate::progress::Progress;
+use crate::solve::{Solution, SolverOptions, solve};
+use crate::spatial::{PointIndex, median_spacing};
+use crate::{Error, PointCloud, Primitive, Result};
+
+/// User-facing options of [`fit`]; `None` means "derive from the cloud".
+#[derive(Debug, Clone, Default)]
+pub struct FitOptions {
+    /// Primitive types to use (default: square).
+    pub kinds: Vec<ShapeKind>,
+    /// Main extent: square side, disk/sphere diameter, cylinder length.
+    pub size: Option<f64>,
+    /// Tube radius of cylinders and elbows.
+    pub radius: Option<f64>,
+    /// Elbow bend radius (centre line).
+    pub bend: Option<f64>,
+    /// Lattice translation step.
+    pub spacing: Option<f64>,
+    /// A lattice point.
+    pub origin: Option<Point3<f64>>,
+    /// Spacing of candidate surface samples.
+    pub sample_spacing: Option<f64>,
+    /// Point-term model.
+    pub model: PointModel,
+    /// α; `Some(usize::MAX)` = unlimited.
+    pub alpha: Option<usize>,
+    /// β; `Some(usize::MAX)` = unlimited.
+    pub beta: Option<usize>,
+    /// The distance whose square is `d_cap`.
+    pub cap: Option<f64>,
+    /// Weight of the primitive term (default 1).
+    pub primitive_weight: Option<f64>,
+    /// Weight of the point term (default 1).
+    pub point_weight: Option<f64>,
+    /// The mesh used by the `mesh` type.
+    pub mesh: Option<MeshShape>,
+    /// Solver settings.
+    pub solver: SolverOptions,
+    /// Upper bound on the coefficient memory, bytes (default: half the machine's memory).
+    pub memory_budget: Option<u64>,
+    /// Seed for every random choice (the chamfer fit itself is deterministic).
+    pub seed: u64,
+}
+
+/// Every setting of a fit, defaults resolved.
+#[derive(Debug, Clone)]
+pub struct Settings {
+    /// Primitive types.
+    pub kinds: Vec<ShapeKind>,
+    /// See [`FitOptions::size`].
+    pub size: f64,
+    /// See [`FitOptions::radius`].
+    pub radius: f64,
+    /// See [`FitOptions::bend`].
+    pub bend: f64,
+    /// See [`FitOptions::spacing`].
+    pub spacing: f64,
+    /// See [`FitOptions::origin`].
+    pub origin: Point3<f64>,
+    /// See [`FitOptions::sample_spacing`].
+    pub sample_spacing: f64,
+    /// The cloud's median nearest-neighbour distance.
+    pub point_spacing: f64,
+    /// The distance whose square is `d_cap`.
+    pub cap: f64,
+    /// Loss options.
+    pub chamfer: ChamferOptions,
+    /// Solver options.
+    pub solver: SolverOptions,
+    /// Seed.
+    pub seed: u64,
+    /// Memory budget for coefficients, bytes.
+    pub memory_budget: u64,
+    /// Mesh source, if the mesh type is used.
+    pub mesh: Option<MeshShape>,
+}
+
+/// `x` rounded down to 1, 2 or 5 × 10^k.
+fn nice_floor(x: f64) -> f64 {
+    let e = 10f64.powf(x.log10().floor());
+    let m = x / e;
+    e * if m >= 5.0 {
+        5.0
+    } else if m >= 2.0 {
+        2.0
+    } else {
+        1.0
+    }
+}
+
+fn limit(v: Option<usize>, default: usize) -> Option<usize> {
+    match v {
+        None => Some(default),
+        Some(usize::MAX) => None,
+        Some(n) => Some(n),
+    }
+}
+
+/// Physical memory in bytes (Linux `/proc/meminfo`), or 8 GiB when unknown.
+fn physical_memory() -> u64 {
+    std::fs::read_to_string("/proc/meminfo")
+        .ok()
+        .and_then(|s| {
+            let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
+            line.split_whitespace().nth(1)?.parse::<u64>().ok().map(|kb| kb * 1024)
+        })
+        .unwrap_or(8 << 30)
+}
+
+fn positive(name: &str, v: f64) -> Result<f64> {
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(Error::invalid(format!("--{name} must be a positive length, got {v}")))
+    }
+}
+
+impl Settings {
+    /// Resolves every default from the cloud (see the module docs) and validates.
+    pub fn resolve(cloud: &PointCloud, index: &PointIndex, o: &FitOptions) -> Result<Settings> {
+        let (lo, hi) = cloud.bounds().ok_or_else(|| Error::invalid("the cloud is empty"))?;
+        let diagonal = (hi - lo).norm();
+        if !(diagonal > 0.0) {
+            return Err(Error::invalid("the cloud has no extent (all points coincide)"));
+        }
+        let point_spacing = median_spacing(&cloud.points, index, 2000).unwrap_or(diagonal / 100.0);
+        let kinds = if o.kinds.is_empty() { vec![ShapeKind::Square] } else { o.kinds.clone() };
+        let size = positive("size", o.size.unwrap_or_else(|| nice_floor(diagonal / 8.0)))?;
+        let spacing = positive("spacing", o.spacing.unwrap_or(size / 2.0))?;
+        let radius = positive("radius", o.radius.unwrap_or(size / 10.0))?;
+        let bend = positive("bend", o.bend.unwrap_or(spacing))?;
+        let cap = o.cap.unwrap_or(spacing);
+        if !(cap.is_finite() && cap >= 0.0) {
+            return Err(Error::invalid(format!("--cap must be a finite distance ≥ 0, got {cap}")));
+        }
+        let tubes = kinds.iter().any(|k| matches!(k, ShapeKind::Cylinder | ShapeKind::Elbow));
+        let mut sample_spacing = size / 16.0;
+        if tubes {
+            sample_spacing = sample_spacing.min(std::f64::consts::TAU * radius / 12.0);
+        }
+        let sample_spacing = positive("sample-spacing", o.sample_spacing.unwrap_or(sample_spacing.max(point_spacing)))?;
+        if kinds.contains(&ShapeKind::Mesh) && o.mesh.is_none() {
+            return Err(Error::invalid("the mesh type needs a mesh (--mesh-model FILE.ply)"));
+        }
+        let chamfer = ChamferOptions {
+            model: o.model,
+            alpha: match o.model {
+                PointModel::Independent => limit(o.alpha, 10),
+                PointModel::Existence => None,
+            },
+            beta: limit(o.beta, 16),
+            cap: cap * cap,
+            primitive_weight: o.primitive_weight.unwrap_or(1.0),
+            point_weight: o.point_weight.unwrap_or(1.0),
+        };
+        chamfer.validate()?;
+        Ok(Settings {
+            kinds,
+            size,
+            radius,
+            bend,
+            spacing,
+            origin: o.origin.unwrap_or_else(Point3::origin),
+            sample_spacing,
+            point_spacing,
+            cap,
+            chamfer,
+            solver: o.solver.clone(),
+            seed: o.seed,
+            memory_budget: o.memory_budget.unwrap_or(physical_memory() / 2),
+            mesh: o.mesh.clone(),
+        })
+    }
+
+    /// The shape of each selected type at the configured sizes.
+    pub fn shapes(&self) -> Vec<Shape> {
+        self.kinds
+            .iter()
+            .filter_map(|k| {
+                Some(match k {
+                    ShapeKind::Square => Shape::Square { side: self.size },
+                    ShapeKind::Disk => Shape::Disk { diameter: self.size },
+                    ShapeKind::Sphere => Shape::Sphere { diameter: self.size },
+                    ShapeKind::Cylinder => Shape::Cylinder { length: self.size, radius: self.radius },
+                    ShapeKind::Elbow => Shape::Elbow { bend: self.bend, radius: self.radius },
+                    ShapeKind::Mesh => Shape::Mesh(self.mesh.clone()?),
+                })
+            })
+            .collect()
+    }
+
+    /// The lattice these settings describe.
+    pub fn lattice(&self) -> LatticeSpec {
+        LatticeSpec {
+            shapes: self.shapes(),
+            spacing: self.spacing,
+            origin: self.origin,
+            frame: UnitQuaternion::identity(),
+            sample_spacing: self.sample_spacing,
+        }
+    }
+
+    /// Every setting as JSON (`result.json`'s `"settings"`).
+    pub fn to_json(&self) -> Value {
+        let lim = |v: Option<usize>| v.map_or(Value::from("inf"), Value::from);
+        json!({
+            "types": self.kinds.iter().map(|k| k.name()).collect::<Vec<_>>(),
+            "size": self.size,
+            "radius": self.radius,
+            "bend": self.bend,
+            "spacing": self.spacing,
+            "origin": [self.origin.x, self.origin.y, self.origin.z],
+            "sample_spacing": self.sample_spacing,
+            "point_spacing": self.point_spacing,
+            "model": self.chamfer.model.name(),
+            "alpha": lim(self.chamfer.alpha),
+            "beta": lim(self.chamfer.beta),
+            "cap": self.cap,
+            "weights": [self.chamfer.primitive_weight, self.chamfer.point_weight],
+            "parameterization": self.solver.parameterization.name(),
+            "max_iterations": self.solver.max_iterations,
+            "threshold": self.solver.threshold,
+            "polish": self.solver.polish,
+            "method": "chamfer",
+            "seed": self.seed,
+            "mesh_model": self.mesh.as_ref().map(|m| m.source.clone()),
+        })
+    }
+}
+
+/// Size and timing facts of a fit, for the summary and the benchmark table.
+#[derive(Debug, Clone, Default)]
+pub struct FitStats {
+    /// Input points J.
+    pub points: usize,
+    /// Candidates N after the occupancy prior.
+    pub candidates: usize,
+    /// (point, candidate) entries of the point term.
+    pub entries: usize,
+    /// Bytes per entry.
+    pub bytes_per_entry: usize,
+    /// Bytes held by the coefficients.
+    pub coefficient_bytes: usize,
+    /// Seconds spent building the lattice.
+    pub lattice_seconds: f64,
+    /// Seconds spent building coefficients.
+    pub coefficient_seconds: f64,
+    /// Seconds spent in L-BFGS, thresholding and polish.
+    pub solve_seconds: f64,
+}
+
+/// The result of [`fit`].
+#[derive(Debug, Clone)]
+pub struct FitResult {
+    /// Settings used.
+    pub settings: Settings,
+    /// The chosen primitives.
+    pub primitives: Vec<Primitive>,
+    /// The continuous existence probability of each chosen primitive.
+    pub existence: Vec<f64>,
+    /// Solver output over all candidates.
+    pub solution: Solution,
+    /// Sizes and timings.
+    pub stats: FitStats,
+}
+
+impl FitResult {
+    /// `result.json` (DESIGN §3); `metrics` is inserted as given.
+    pub fn to_json(&self, metrics: Value) -> Value {
+        result_json(self.settings.to_json(), metrics, &self.primitives, &self.existence)
+    }
+
+    /// All primitives as one mesh, with the primitive index of every face.
+    pub fn mesh(&self) -> (TriMesh, Vec<i32>) {
+        primitives_mesh(&self.primitives)
+    }
+}
+
+/// The `result.json` document shared by `fit`, `synth --truth` and `register`.
+pub fn result_json(settings: Value, metrics: Value, primitives: &[Primitive], existence: &[f64]) -> Value {
+    let list: Vec<Value> = primitives
+        .iter()
+        .zip(existence)
+        .map(|(p, e)| {
+            let mut v = p.to_json();
+            v["existence"] = json!(e);
+            v
+        })
+        .collect();
+    json!({ "primfit": crate::VERSION, "settings": settings, "metrics": metrics, "primitives": list })
+}
+
+/// One triangle mesh of all `primitives`, and the index of the primitive of every face.
+pub fn primitives_mesh(primitives: &[Primitive]) -> (TriMesh, Vec<i32>) {
+    let mut mesh = TriMesh::default();
+    let mut owner = Vec::new();
+    for (k, p) in primitives.iter().enumerate() {
+        let range = mesh.append(&p.triangulate());
+        owner.extend(std::iter::repeat_n(k as i32, range.len()));
+    }
+    (mesh, owner)
+}
+
+/// Estimated coefficient bytes for `points` points under `chamfer` with `candidates` candidates.
+pub fn estimate_bytes(points: usize, candidates: usize, max_samples: usize, chamfer: &ChamferOptions) -> u64 {
+    let per_point = chamfer.beta.unwrap_or(candidates).min(candidates) as u64
+        * match chamfer.model {
+            PointModel::Existence => 1,
+            PointModel::Independent => chamfer.alpha.unwrap_or(max_samples).min(max_samples) as u64,
+        };
+    points as u64 * (per_point * Coefficients::BYTES_PER_ENTRY as u64 + 8)
+}
+
+/// Fits primitives to `cloud`.
+pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) -> Result<FitResult> {
+    if cloud.is_empty() {
+        return Err(Error::invalid("the cloud is empty"));
+    }
+    if cloud.points.iter().any(|p| !p.coords.iter().all(|c| c.is_finite())) {
+        return Err(Error::invalid("the cloud has non-finite coordinates"));
+    }
+    let index = PointIndex::new(&cloud.points);
+    let settings = Settings::resolve(cloud, &index, options)?;
+    progress.message(&format!("settings: {}", settings.to_json()));
+
+    let t0 = Instant::now();
+    let candidates = CandidateSet::build(&settings.lattice(), cloud)?;
+    let lattice_seconds = t0.elapsed().as_secs_f64();
+    if candidates.is_empty() {
+        return Err(Error::invalid("the lattice has no candidates near the cloud"));
+    }
+    let max_samples = candidates.templates.iter().map(|t| t.samples.len()).max().unwrap_or(1);
+    let need = estimate_bytes(cloud.len(), candidates.len(), max_samples, &settings.chamfer);
+    if need > settings.memory_budget {
+        return Err(Error::TooLarge(format!(
+            "{} points × {} candidates would need about {:.1} GiB of coefficients (budget {:.1} GiB); \
+             lower --beta, use a coarser --spacing, or subsample the cloud",
+            cloud.len(),
+            candidates.len(),
+            need as f64 / (1u64 << 30) as f64,
+            settings.memory_budget as f64 / (1u64 << 30) as f64
+        )));
+    }
+    progress.message(&format!("{} candidates, {} samples per template at most", candidates.len(), max_samples));
+
+    let t1 = Instant::now();
+    let coeffs = Coefficients::build(&cloud.points, &candidates, &settings.chamfer, progress)?;
+    let coefficient_seconds = t1.elapsed().as_secs_f64();
+    progress.message(&format!(
+        "{} entries ({} bytes each, {:.1} MiB in all)",
+        coeffs.entries(),
+        Coefficients::BYTES_PER_ENTRY,
+        coeffs.bytes() as f64 / (1 << 20) as f64
+    ));
+
+    let t2 = Instant::now();
+    let solution = solve(&coeffs, &settings.solver, progress)?;
+    let solve_seconds = t2.elapsed().as_secs_f64();
+
+    let chosen: Vec<usize> = (0..candidates.len()).filter(|&i| solution.exists[i]).collect();
+    let primitives = chosen.iter().map(|&i| candidates.primitive(i)).collect();
+    let existence = chosen.iter().map(|&i| solution.probability[i]).collect();
+    let stats = FitStats {
+        points: cloud.len(),
+        candidates: candidates.len(),
+        entries: coeffs.entries(),
+        bytes_per_entry: Coefficients::BYTES_PER_ENTRY,
+        coefficient_bytes: coeffs.bytes(),
+        lattice_seconds,
+        coefficient_seconds,
+        solve_seconds,
+    };
+    Ok(FitResult { settings, primitives, existence, solution, stats })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::progress::Silent;
+
+    #[test]
+    fn nice_floor_rounds_down_to_1_2_5() {
+        assert_eq!(nice_floor(1.3), 1.0);
+        assert_eq!(nice_floor(0.31), 0.2);
+        assert_eq!(nice_floor(7.0), 5.0);
+        assert!((nice_floor(0.05) - 0.05).abs() < 1e-15);
+    }
+
+    /// A floor patch 2 m × 2 m at z = 0 and a wall at x = 0, aligned with a 0.5 m lattice.
+    fn corner() -> PointCloud {
+        let mut pts = Vec::new();
+        for i in 0..40 {
+            for j in 0..40 {
+                let (a, b) = (i as f64 * 0.05 + 0.025, j as f64 * 0.05 + 0.025);
+                pts.push(Point3::new(a, b, 0.0));
+                pts.push(Point3::new(0.0, a, b));
+            }
+        }
+        PointCloud::from_points(pts)
+    }
+
+    #[test]
+    fn fits_an_aligned_corner_with_squares() {
+        let options = FitOptions { size: Some(1.0), ..Default::default() };
+        let result = fit(&corner(), &options, &Silent).unwrap();
+        assert_eq!(result.settings.spacing, 0.5);
+        // Every input point is on a chosen square (within the sample spacing).
+        for p in corner().points.iter().step_by(7) {
+            let d = result.primitives.iter().map(|q| q.distance(p)).fold(f64::INFINITY, f64::min);
+            assert!(d < 1e-9, "point {p:?} is {d} from the model");
+        }
+        // Two 2 m × 2 m faces need at least 4 squares each, and the polish leaves no
+        // square that is off the data.
+        assert!(result.primitives.len() >= 8, "{}", result.primitives.len());
+        for q in &result.primitives {
+            let c = q.center();
+            assert!(c.z.abs() < 1e-12 || c.x.abs() < 1e-12, "stray square at {c:?}");
+        }
+    }
+
+    #[test]
+    fn bad_options_are_errors() {
+        let c = corner();
+        let bad = FitOptions { size: Some(-1.0), ..Default::default() };
+        assert!(fit(&c, &bad, &Silent).is_err());
+        let bad = FitOptions { cap: Some(f64::NAN), ..Default::default() };
+        assert!(fit(&c, &bad, &Silent).is_err());
+        assert!(fit(&PointCloud::default(), &FitOptions::default(), &Silent).is_err());
+        let tiny = FitOptions { memory_budget: Some(10), ..Default::default() };
+        assert!(matches!(fit(&c, &tiny, &Silent), Err(Error::TooLarge(_))));
+    }
+}
