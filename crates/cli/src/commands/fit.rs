@@ -1,0 +1,220 @@
+//! `primfit fit`: scan in, primitives out.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use primfit_core::atlas::{MeshShape, ShapeKind};
+use primfit_core::chamfer::PointModel;
+use primfit_core::fit::{FitOptions, fit};
+use primfit_core::io::{self, Encoding};
+use primfit_core::na::Point3;
+use primfit_core::solve::{Parameterization, SolverOptions};
+
+use super::{Output, parse_limit, parse_point};
+use crate::progress::Bars;
+
+/// Arguments of `primfit fit`. Every size defaults to a value derived from the cloud
+/// (printed with `-v`, and written to the result's `settings`).
+#[derive(Debug, Args)]
+pub struct FitArgs {
+    /// The scan: a PLY point cloud (ascii or binary; float or double coordinates).
+    pub scene: PathBuf,
+    /// Write the result JSON here.
+    #[arg(short, long, value_name = "result.json")]
+    pub output: Option<PathBuf>,
+    /// Write all fitted primitives as one triangle-mesh PLY (per-face `primitive` index).
+    #[arg(long, value_name = "fitted.ply")]
+    pub mesh: Option<PathBuf>,
+    /// Write PLY output as ascii instead of binary little-endian.
+    #[arg(long)]
+    pub ascii: bool,
+    /// Primitive types: comma-separated from square, disk, cylinder, elbow, sphere, mesh.
+    #[arg(long, value_delimiter = ',', default_value = "square")]
+    pub types: Vec<String>,
+    /// Candidate main extent in scene units: square side, disk/sphere diameter, cylinder
+    /// length [default: bounding-box diagonal / 8, rounded down to 1, 2 or 5 × 10^k].
+    #[arg(long)]
+    pub size: Option<f64>,
+    /// Tube radius of cylinders and elbows [default: size / 10].
+    #[arg(long)]
+    pub radius: Option<f64>,
+    /// Elbow bend radius (centre line) [default: spacing].
+    #[arg(long)]
+    pub bend: Option<f64>,
+    /// Lattice translation step [default: size / 2].
+    #[arg(long)]
+    pub spacing: Option<f64>,
+    /// A lattice point, `x,y,z` [default: 0,0,0].
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
+    pub origin: Option<[f64; 3]>,
+    /// Spacing of candidate surface samples [default: min(size/16, 2π·radius/12), at least
+    /// the cloud's median point spacing].
+    #[arg(long)]
+    pub sample_spacing: Option<f64>,
+    /// Point-term model.
+    #[arg(long, default_value = "existence", value_parser = ["existence", "independent"])]
+    pub model: String,
+    /// α: samples per candidate and point (independent model) [default: 10; `inf` = all].
+    #[arg(long, value_parser = parse_limit)]
+    pub alpha: Option<usize>,
+    /// β: candidates per point [default: 16; `inf` = all].
+    #[arg(long, value_parser = parse_limit)]
+    pub beta: Option<usize>,
+    /// Distance whose square is the cost of an unexplained point [default: spacing].
+    #[arg(long)]
+    pub cap: Option<f64>,
+    /// Weights of the primitive and point terms, `a,b` [default: 1,1].
+    #[arg(long, value_delimiter = ',', num_args = 2)]
+    pub weights: Option<Vec<f64>>,
+    /// Inference method (mcmc needs sensor origins per point).
+    #[arg(long, default_value = "chamfer", value_parser = ["chamfer", "mcmc"])]
+    pub method: String,
+    /// Existence parameterisation of L-BFGS.
+    #[arg(long, default_value = "box", value_parser = ["box", "logit"])]
+    pub parameterization: String,
+    /// Maximum L-BFGS iterations.
+    #[arg(long, default_value_t = 200)]
+    pub max_iterations: usize,
+    /// Skip the discrete polish after thresholding.
+    #[arg(long)]
+    pub no_polish: bool,
+    /// Triangle mesh (PLY with faces) used by the `mesh` type.
+    #[arg(long, value_name = "object.ply")]
+    pub mesh_model: Option<PathBuf>,
+    /// Seed for every random choice.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+}
+
+impl FitArgs {
+    /// Translates the flags into library options.
+    fn options(&self) -> Result<FitOptions> {
+        let kinds = self.types.iter().map(|t| ShapeKind::parse(t)).collect::<Result<Vec<_>, _>>()?;
+        if kinds.is_empty() {
+            bail!("--types needs at least one primitive type");
+        }
+        let mesh = match (&self.mesh_model, kinds.contains(&ShapeKind::Mesh)) {
+            (Some(path), _) => {
+                let m = io::read_mesh(path)?;
+                Some(MeshShape::new(path.display().to_string(), m)?)
+            }
+            (None, true) => bail!("--types mesh needs --mesh-model object.ply"),
+            (None, false) => None,
+        };
+        let (primitive_weight, point_weight) = match self.weights.as_deref() {
+            Some([a, b]) => (Some(*a), Some(*b)),
+            _ => (None, None),
+        };
+        Ok(FitOptions {
+            kinds,
+            size: self.size,
+            radius: self.radius,
+            bend: self.bend,
+            spacing: self.spacing,
+            origin: self.origin.map(|[x, y, z]| Point3::new(x, y, z)),
+            sample_spacing: self.sample_spacing,
+            model: PointModel::parse(&self.model)?,
+            alpha: self.alpha,
+            beta: self.beta,
+            cap: self.cap,
+            primitive_weight,
+            point_weight,
+            mesh,
+            solver: SolverOptions {
+                parameterization: Parameterization::parse(&self.parameterization)?,
+                max_iterations: self.max_iterations,
+                polish: !self.no_polish,
+                ..Default::default()
+            },
+            memory_budget: None,
+            seed: self.seed,
+        })
+    }
+}
+
+/// Runs `primfit fit`.
+pub fn run(args: FitArgs, out: &Output) -> Result<()> {
+    if args.method == "mcmc" {
+        bail!("--method mcmc is not available in this build yet; use --method chamfer");
+    }
+    let options = args.options()?;
+    let (cloud, report) = io::read_cloud_report(&args.scene)?;
+    if report.skipped_non_finite > 0 && !out.quiet {
+        eprintln!(
+            "warning: {}: skipped {} points with NaN/inf coordinates",
+            args.scene.display(),
+            report.skipped_non_finite
+        );
+    }
+    if cloud.is_empty() {
+        bail!("{}: the cloud has no points", args.scene.display());
+    }
+    let bars = Bars::new(out.quiet, out.verbose);
+    let result = fit(&cloud, &options, &bars).with_context(|| format!("fitting {}", args.scene.display()))?;
+    let metrics = super::eval::measure(&cloud, &result.primitives, None);
+    let encoding = if args.ascii { Encoding::Ascii } else { Encoding::BinaryLittleEndian };
+    if let Some(path) = &args.output {
+        let mut doc = result.to_json(metrics.to_json());
+        doc["settings"]["scene"] = args.scene.display().to_string().into();
+        io::write_json_atomic(path, &doc)?;
+    }
+    if let Some(path) = &args.mesh {
+        let (mesh, owner) = result.mesh();
+        io::write_mesh(path, &mesh, Some(&owner), encoding)?;
+    }
+    if !out.quiet {
+        print_summary(&args, &result, &metrics, out.verbose);
+    }
+    Ok(())
+}
+
+fn print_summary(
+    args: &FitArgs,
+    r: &primfit_core::fit::FitResult,
+    m: &primfit_core::metrics::Metrics,
+    verbose: bool,
+) {
+    let mut counts = std::collections::BTreeMap::new();
+    for p in &r.primitives {
+        *counts.entry(p.shape.kind().name()).or_insert(0usize) += 1;
+    }
+    let kinds: Vec<String> = counts.iter().map(|(k, n)| format!("{n} {k}")).collect();
+    println!(
+        "{}: {} points → {} primitives ({}) from {} candidates",
+        args.scene.display(),
+        r.stats.points,
+        r.primitives.len(),
+        if kinds.is_empty() { "none".into() } else { kinds.join(", ") },
+        r.stats.candidates
+    );
+    println!(
+        "point→model mean {:.4}, p95 {:.4}, max {:.4}; model→point mean {:.4}; coverage@{} {:.1} %",
+        m.point_to_model_mean,
+        m.point_to_model_p95,
+        m.point_to_model_max,
+        m.model_to_point_mean,
+        m.coverage_tau,
+        100.0 * m.coverage
+    );
+    if verbose {
+        let s = &r.stats;
+        println!(
+            "{} entries × {} B = {:.1} MiB; lattice {:.2} s, coefficients {:.2} s, solve {:.2} s ({} iterations, {} evaluations, {} polish flips)",
+            s.entries,
+            s.bytes_per_entry,
+            s.coefficient_bytes as f64 / (1 << 20) as f64,
+            s.lattice_seconds,
+            s.coefficient_seconds,
+            s.solve_seconds,
+            r.solution.iterations,
+            r.solution.evaluations,
+            r.solution.flips
+        );
+    }
+    for (flag, path) in [("result", &args.output), ("mesh", &args.mesh)] {
+        if let Some(p) = path {
+            println!("wrote {flag} {}", p.display());
+        }
+    }
+}

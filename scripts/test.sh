@@ -1,0 +1,33 @@
+#!/usr/bin/env bash
+# Runs every test of the project: Rust (all crates, unit + integration + doc tests),
+# then the Python package (wheel built by maturin into a virtualenv, pytest).
+#
+#   scripts/test.sh            # what the README and CI run
+#
+# Environment:
+#   PRIMFIT_VENV         virtualenv to use/create (default: ~/.cache/primfit-ci/venv-<hash of
+#                        python/requirements-ci.txt>, outside the clone so it is reused)
+#   PRIMFIT_REQUIRE_ALL  1 = a skipped test is a failure (CI sets it)
+set -euo pipefail
+cd "$(dirname "$0")/.."
+
+echo "== cargo test (workspace)"
+cargo test --workspace --all-targets --locked
+cargo test --workspace --doc --locked
+
+echo "== python"
+req=python/requirements-ci.txt
+hash=$(sha256sum "$req" | cut -c1-16)
+venv=${PRIMFIT_VENV:-$HOME/.cache/primfit-ci/venv-$hash}
+if [ ! -x "$venv/bin/python" ] || [ ! -f "$venv/.complete" ]; then
+    echo "creating $venv (first run downloads torch: several GB)"
+    rm -rf "$venv"
+    python3 -m venv "$venv"
+    "$venv/bin/pip" install -q --upgrade pip
+    "$venv/bin/pip" install -q -r "$req"
+    touch "$venv/.complete"
+fi
+rm -rf target/wheels
+"$venv/bin/maturin" build --release -q -m crates/py/Cargo.toml -i "$venv/bin/python" --out target/wheels
+"$venv/bin/pip" install -q --force-reinstall --no-deps target/wheels/primfit-*.whl
+"$venv/bin/python" -m pytest -q crates/py/tests -p no:cacheprovider
