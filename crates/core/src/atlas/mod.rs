@@ -23,6 +23,8 @@ mod numeric;
 mod planar;
 mod shapes;
 mod sphere;
+#[cfg(test)]
+mod tests;
 mod trimesh;
 mod tube;
 
