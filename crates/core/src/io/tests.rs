@@ -680,6 +680,11 @@ fn io_directory_and_empty_file() {
     fails(read_cloud(&sub), &sub, "is a directory");
     let empty = dir.write("empty.ply", b"");
     fails(read_cloud(&empty), &empty, "empty");
+    // A device (size unknown, so read as a stream).
+    let null = Path::new("/dev/null");
+    if null.exists() {
+        fails(read_cloud(null), null, "empty");
+    }
 }
 
 #[test]

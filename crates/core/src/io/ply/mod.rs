@@ -21,18 +21,22 @@ use crate::{Error, PointCloud, Result, TriMesh};
 
 pub use self::write::{write_cloud, write_mesh, write_mesh_colored};
 
-/// Ascii files reserve at most this many points up front (then grow as data arrives).
-const ASCII_RESERVE_CAP: usize = 1 << 20;
+/// Ascii files and streams reserve at most this many elements up front (then grow as
+/// data arrives).
+const RESERVE_CAP: usize = 1 << 20;
 
 /// An open PLY file: its checked header and a reader at the start of its body.
 struct PlyFile {
     header: PlyHeader,
     body: Body<BufReader<File>>,
+    /// False for pipes and devices, whose size is unknown: counts were not checked.
+    sized: bool,
 }
 
 impl PlyFile {
     /// Opens `path`, reads and checks its header, and checks that the file is large
-    /// enough for the element counts it declares.
+    /// enough for the element counts it declares (when it is a regular file; pipes and
+    /// devices are read as a stream).
     fn open(path: &Path) -> Result<Self> {
         let file = File::open(path).map_err(|e| Error::io(path, e))?;
         let meta = file.metadata().map_err(|e| Error::io(path, e))?;
@@ -41,9 +45,16 @@ impl PlyFile {
         }
         let mut reader = BufReader::with_capacity(1 << 16, file);
         let header = read_header(&mut reader, path)?;
-        check_body_size(&header, meta.len().saturating_sub(header.byte_len), path)?;
+        let sized = meta.is_file();
+        if sized {
+            check_body_size(&header, meta.len().saturating_sub(header.byte_len), path)?;
+        }
         let body = Body::new(reader, path, header.format, header.line_count);
-        Ok(PlyFile { header, body })
+        Ok(PlyFile {
+            header,
+            body,
+            sized,
+        })
     }
 
     /// The element definitions, in file order.
@@ -63,10 +74,11 @@ impl PlyFile {
     /// How many elements of `def` to reserve room for.
     fn reserve(&self, def: &ElementDef) -> usize {
         // Binary counts were checked against the file size; ascii is capped too because
-        // a short ascii value can stand for a large record.
-        match self.header.format {
-            super::PlyFormat::Ascii => def.count.min(ASCII_RESERVE_CAP),
-            _ => def.count,
+        // a short ascii value can stand for a large record, and so are unsized streams.
+        if self.sized && self.header.format != super::PlyFormat::Ascii {
+            def.count
+        } else {
+            def.count.min(RESERVE_CAP)
         }
     }
 }

@@ -277,3 +277,60 @@ fn check_mesh(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    //! Our output read back by ply-rs-bw's generic reader: a second opinion on the
+    //! files' validity, independent of our own reader.
+
+    use super::*;
+    use nalgebra::Point3;
+    use ply_rs_bw::parser::Parser;
+    use ply_rs_bw::ply::{DefaultElement, Property};
+
+    /// A fresh path under the temp directory (the file is removed by the caller).
+    fn temp_path(name: &str) -> std::path::PathBuf {
+        std::env::temp_dir().join(format!("primfit-io-write-{}-{name}", std::process::id()))
+    }
+
+    #[test]
+    fn io_written_files_parse_with_ply_rs_bw_default_reader() {
+        let cloud = PointCloud {
+            labels: Some(vec![7, -1]),
+            colors: Some(vec![[1, 2, 3], [4, 5, 6]]),
+            ..PointCloud::from_points(vec![
+                Point3::new(0.5, 1.5, 2.5),
+                Point3::new(-1.0, 0.0, 1e-7),
+            ])
+        };
+        let mesh = TriMesh {
+            vertices: cloud.points.clone(),
+            faces: vec![[0, 1, 1]],
+        };
+        for encoding in [Encoding::Ascii, Encoding::BinaryLittleEndian] {
+            let path = temp_path("cloud.ply");
+            write_cloud(&path, &cloud, encoding).expect("write cloud");
+            let bytes = std::fs::read(&path).expect("read");
+            std::fs::remove_file(&path).expect("remove");
+            let ply = Parser::<DefaultElement>::new()
+                .read_ply(&mut &bytes[..])
+                .expect("parse");
+            let v = &ply.payload["vertex"];
+            assert_eq!(v.len(), 2);
+            assert_eq!(v[1]["z"], Property::Double(1e-7));
+            assert_eq!(v[0]["label"], Property::Int(7));
+            assert_eq!(v[1]["blue"], Property::UChar(6));
+
+            let path = temp_path("mesh.ply");
+            write_mesh(&path, &mesh, Some(&[3]), encoding).expect("write mesh");
+            let bytes = std::fs::read(&path).expect("read");
+            std::fs::remove_file(&path).expect("remove");
+            let ply = Parser::<DefaultElement>::new()
+                .read_ply(&mut &bytes[..])
+                .expect("parse");
+            let f = &ply.payload["face"];
+            assert_eq!(f[0]["vertex_indices"], Property::ListInt(vec![0, 1, 1]));
+            assert_eq!(f[0]["primitive"], Property::Int(3));
+        }
+    }
+}
