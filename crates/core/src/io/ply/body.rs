@@ -188,8 +188,8 @@ impl<R: BufRead> Body<R> {
             }
             if let Some(k) = chunk.iter().position(|b| !b.is_ascii_whitespace()) {
                 let msg = format!(
-                    "unexpected data {} bytes after the last element the header declares \
-                     (the header's counts or types do not match the {} body)",
+                    "unexpected data {} bytes past the end of the last element the header \
+                     declares (the header's counts or types do not match the {} body)",
                     offset + k,
                     self.format
                 );

@@ -97,7 +97,7 @@ fn read_header_lines<R: BufRead>(reader: &mut R, path: &Path) -> Result<(Vec<Str
         if lines.is_empty() {
             check_magic(&line, n, path)?;
         }
-        if n == 0 {
+        if n == 0 && consumed < MAX_HEADER_BYTES {
             return Err(Error::format(
                 path,
                 "the PLY header has no 'end_header' line (truncated file?)",
