@@ -16,8 +16,18 @@
 //! | `Sphere { diameter }` | the sphere of radius `diameter/2` centred at the origin |
 //! | `Mesh(MeshShape)` | a triangle mesh in its own coordinates |
 
+mod bvh;
+mod elbow;
+mod mesh;
+mod numeric;
+mod planar;
 mod shapes;
+mod sphere;
+#[cfg(test)]
+mod tests;
 mod trimesh;
+mod tube;
 
+pub use mesh::MeshShape;
 pub use shapes::*;
 pub use trimesh::TriMesh;

@@ -1,12 +1,15 @@
 //! The [`Shape`] enum and its geometry. See the module docs of [`crate::atlas`] for the
 //! local-frame conventions.
 
-use std::sync::Arc;
-
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 use serde_json::{Map, Value};
 
-use super::TriMesh;
+use super::elbow::{elbow_closest, elbow_mesh, elbow_ray, elbow_sample};
+use super::planar::{disk_closest, disk_mesh, disk_ray, disk_sample};
+use super::planar::{square_closest, square_mesh, square_ray, square_sample};
+use super::sphere::{sphere_closest, sphere_mesh, sphere_ray, sphere_sample};
+use super::tube::{cylinder_closest, cylinder_mesh, cylinder_ray, cylinder_sample};
+use super::{MeshShape, TriMesh};
 use crate::{Error, Result};
 
 /// The name of a primitive type, as used on the command line and in JSON.
@@ -66,15 +69,6 @@ impl std::fmt::Display for ShapeKind {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.write_str(self.name())
     }
-}
-
-/// A triangle mesh used as a primitive type, with what closest-point queries need.
-#[derive(Debug, Clone)]
-pub struct MeshShape {
-    /// Where the mesh came from (a file path or a generator name); written to JSON.
-    pub source: String,
-    /// The mesh, in its own local frame.
-    pub mesh: Arc<TriMesh>,
 }
 
 /// A primitive type with its sizes, in its local frame (see [`crate::atlas`]).
@@ -223,36 +217,38 @@ impl Shape {
     }
 
     /// Deterministic, area-uniform samples of the surface with roughly `spacing` between
-    /// neighbours (local frame). At least one sample is always returned.
+    /// neighbours (local frame, same length unit as the sizes). About `area / spacing²`
+    /// points (the square uses `ceil(side / spacing)²`), never fewer than one; the same
+    /// input always gives the same points in the same order. `spacing` must be positive
+    /// and finite.
+    ///
+    /// Layouts: square, cell-centre grid; disk, sunflower spiral; cylinder, cell-centre
+    /// (θ, z) grid; elbow, rows of constant tube angle with counts proportional to their
+    /// band's area; sphere, Fibonacci lattice; mesh, per-face counts proportional to face
+    /// area with R2 low-discrepancy points inside each face.
     pub fn sample_surface(&self, spacing: f64) -> Vec<Point3<f64>> {
         match self {
-            Shape::Square { side } => {
-                let n = ((side / spacing).ceil() as usize).max(1);
-                let step = side / n as f64;
-                let mut out = Vec::with_capacity(n * n);
-                for j in 0..n {
-                    for i in 0..n {
-                        out.push(Point3::new(
-                            -side / 2.0 + (i as f64 + 0.5) * step,
-                            -side / 2.0 + (j as f64 + 0.5) * step,
-                            0.0,
-                        ));
-                    }
-                }
-                out
-            }
-            _ => unimplemented!("atlas sampling for {}", self.kind()),
+            Shape::Disk { diameter } => disk_sample(diameter / 2.0, spacing),
+            Shape::Square { side } => square_sample(*side, spacing),
+            Shape::Cylinder { length, radius } => cylinder_sample(*length, *radius, spacing),
+            Shape::Elbow { bend, radius } => elbow_sample(*bend, *radius, spacing),
+            Shape::Sphere { diameter } => sphere_sample(diameter / 2.0, spacing),
+            Shape::Mesh(m) => m.sample(spacing),
         }
     }
 
-    /// The closest point of the surface to `p` (local frame).
+    /// The closest point of the surface to `p` (local frame), exact up to rounding.
+    /// Open tubes and the elbow include their rim circles; where several surface points
+    /// are equally close (a point on a cylinder's axis, the sphere's centre, …) any one of
+    /// them is returned.
     pub fn closest_point(&self, p: &Point3<f64>) -> Point3<f64> {
         match self {
-            Shape::Square { side } => {
-                let h = side / 2.0;
-                Point3::new(p.x.clamp(-h, h), p.y.clamp(-h, h), 0.0)
-            }
-            _ => unimplemented!("atlas closest point for {}", self.kind()),
+            Shape::Disk { diameter } => disk_closest(diameter / 2.0, p),
+            Shape::Square { side } => square_closest(*side, p),
+            Shape::Cylinder { length, radius } => cylinder_closest(*length, *radius, p),
+            Shape::Elbow { bend, radius } => elbow_closest(*bend, *radius, p),
+            Shape::Sphere { diameter } => sphere_closest(diameter / 2.0, p),
+            Shape::Mesh(m) => m.closest_point(p),
         }
     }
 
@@ -262,22 +258,41 @@ impl Shape {
     }
 
     /// A triangle mesh of the surface for export (local frame), fine enough that its
-    /// deviation from the true surface is below 1 % of the shape's size.
+    /// deviation from the true surface is below 1 % of the shape's size. Vertices lie on
+    /// the surface and faces wind counter-clockwise seen from outside (from +z for the
+    /// flat types). Curved types use 48 segments around; a mesh returns itself.
     pub fn triangulate(&self) -> TriMesh {
         match self {
-            Shape::Square { side } => {
-                let h = side / 2.0;
-                TriMesh {
-                    vertices: vec![
-                        Point3::new(-h, -h, 0.0),
-                        Point3::new(h, -h, 0.0),
-                        Point3::new(h, h, 0.0),
-                        Point3::new(-h, h, 0.0),
-                    ],
-                    faces: vec![[0, 1, 2], [0, 2, 3]],
-                }
-            }
-            _ => unimplemented!("atlas triangulation for {}", self.kind()),
+            Shape::Disk { diameter } => disk_mesh(diameter / 2.0),
+            Shape::Square { side } => square_mesh(*side),
+            Shape::Cylinder { length, radius } => cylinder_mesh(*length, *radius),
+            Shape::Elbow { bend, radius } => elbow_mesh(*bend, *radius),
+            Shape::Sphere { diameter } => sphere_mesh(diameter / 2.0),
+            Shape::Mesh(m) => (*m.mesh).clone(),
         }
+    }
+
+    /// The smallest `t ≥ 0` such that `origin + t·dir` lies on the surface (local frame),
+    /// or `None` if the ray misses. `dir` need not be unit length; `t` is in units of
+    /// `dir` (so with a unit `dir` it is a distance). An origin on the surface gives
+    /// `Some(0.0)`. A zero `dir` hits only if `origin` is on the surface. Rays that merely
+    /// graze a curved surface (tangent to within rounding) count as hits.
+    pub fn ray_intersect(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<f64> {
+        if !(dir.norm_squared() > 0.0) {
+            return (self.distance(origin) == 0.0).then_some(0.0);
+        }
+        match self {
+            Shape::Disk { diameter } => disk_ray(diameter / 2.0, origin, dir),
+            Shape::Square { side } => square_ray(*side, origin, dir),
+            Shape::Cylinder { length, radius } => cylinder_ray(*length, *radius, origin, dir),
+            Shape::Elbow { bend, radius } => elbow_ray(*bend, *radius, origin, dir),
+            Shape::Sphere { diameter } => sphere_ray(diameter / 2.0, origin, dir),
+            Shape::Mesh(m) => m.ray_intersect(origin, dir),
+        }
+    }
+
+    /// A `Mesh` shape from a triangle mesh (see [`MeshShape::new`] for the checks).
+    pub fn from_mesh(source: impl Into<String>, mesh: impl Into<std::sync::Arc<TriMesh>>) -> Result<Shape> {
+        MeshShape::new(source, mesh).map(Shape::Mesh)
     }
 }

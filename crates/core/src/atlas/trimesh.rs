@@ -32,4 +32,24 @@ impl TriMesh {
         self.faces.extend(other.faces.iter().map(|f| f.map(|i| i + base)));
         start..self.faces.len()
     }
+
+    /// Stitches closed rings of equal length into a tube (internal helper of the atlas).
+    ///
+    /// The rings must follow one another along some axis `w`, and each ring's points must
+    /// run counter-clockwise around `w` (right-hand rule); the faces then have outward
+    /// normals. Every quad between two rings is split into two triangles.
+    pub(crate) fn from_rings(rings: &[Vec<Point3<f64>>]) -> TriMesh {
+        let n = rings.first().map_or(0, Vec::len) as u32;
+        let vertices: Vec<Point3<f64>> = rings.iter().flatten().copied().collect();
+        let mut faces = Vec::with_capacity(2 * n as usize * rings.len().saturating_sub(1));
+        for k in 1..rings.len() as u32 {
+            let (lower, upper) = ((k - 1) * n, k * n);
+            for j in 0..n {
+                let jn = (j + 1) % n;
+                faces.push([lower + j, lower + jn, upper + jn]);
+                faces.push([lower + j, upper + jn, upper + j]);
+            }
+        }
+        TriMesh { vertices, faces }
+    }
 }

@@ -1,0 +1,246 @@
+//! A bounding-volume hierarchy over a mesh's triangles: exact closest point and first
+//! ray hit in O(log n) typical time.
+//!
+//! Built top-down by median split of the triangle centroids along the longest axis of
+//! their bounding box, so the tree is balanced (depth ≈ log₂(n/[`LEAF_SIZE`])) whatever the
+//! triangle sizes. Queries walk it depth-first, nearer child first, and prune boxes that
+//! cannot beat the best answer so far; pruning only skips boxes that provably hold
+//! nothing better, so the answers equal those of a brute-force scan.
+
+use nalgebra::{Point3, Vector3};
+
+use super::TriMesh;
+use super::numeric::slab;
+
+/// At most this many triangles in a leaf.
+const LEAF_SIZE: usize = 4;
+
+/// An axis-aligned box.
+#[derive(Debug, Clone, Copy)]
+struct Aabb {
+    lo: Point3<f64>,
+    hi: Point3<f64>,
+}
+
+impl Aabb {
+    fn empty() -> Self {
+        Aabb { lo: Point3::from([f64::INFINITY; 3]), hi: Point3::from([f64::NEG_INFINITY; 3]) }
+    }
+
+    fn grow(&mut self, p: &Point3<f64>) {
+        self.lo = self.lo.inf(p);
+        self.hi = self.hi.sup(p);
+    }
+
+    /// Squared distance from `p` to the box (0 inside).
+    fn distance2(&self, p: &Point3<f64>) -> f64 {
+        (0..3).map(|k| (self.lo[k] - p[k]).max(p[k] - self.hi[k]).max(0.0).powi(2)).sum()
+    }
+
+    /// The ray parameters where `o + t d` is inside the box.
+    fn ray_span(&self, o: &Point3<f64>, d: &Vector3<f64>) -> Option<(f64, f64)> {
+        slab(o.coords.into(), (*d).into(), self.lo.coords.into(), self.hi.coords.into())
+    }
+}
+
+/// A node: a leaf holds `count > 0` triangles from `first`; an inner node (`count == 0`)
+/// has its two children at `first` and `first + 1`.
+#[derive(Debug, Clone, Copy)]
+struct Node {
+    bounds: Aabb,
+    first: u32,
+    count: u32,
+}
+
+/// The hierarchy and the triangles' corners, stored in leaf order.
+#[derive(Debug, Clone)]
+pub(super) struct TriangleBvh {
+    nodes: Vec<Node>,
+    triangles: Vec<[Point3<f64>; 3]>,
+}
+
+impl TriangleBvh {
+    /// Builds the hierarchy over all faces of `mesh` (face indices must be in range).
+    pub(super) fn new(mesh: &TriMesh) -> Self {
+        let triangles: Vec<[Point3<f64>; 3]> =
+            mesh.faces.iter().map(|f| f.map(|i| mesh.vertices[i as usize])).collect();
+        let centroids: Vec<Point3<f64>> =
+            triangles.iter().map(|[a, b, c]| Point3::from((a.coords + b.coords + c.coords) / 3.0)).collect();
+        let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
+        let mut nodes = vec![Node { bounds: Aabb::empty(), first: 0, count: 0 }];
+        build(&mut nodes, 0, &mut order, 0, &triangles, &centroids);
+        let triangles = order.iter().map(|&i| triangles[i as usize]).collect();
+        TriangleBvh { nodes, triangles }
+    }
+
+    /// The closest point of any triangle to `p` (`None` only for an empty mesh).
+    pub(super) fn closest_point(&self, p: &Point3<f64>) -> Option<Point3<f64>> {
+        if self.triangles.is_empty() {
+            return None;
+        }
+        let mut best: Option<(f64, Point3<f64>)> = None;
+        let bound = |best: &Option<(f64, Point3<f64>)>| best.map_or(f64::INFINITY, |(d2, _)| d2);
+        let mut stack = vec![(0u32, self.nodes[0].bounds.distance2(p))];
+        while let Some((index, box_d2)) = stack.pop() {
+            if box_d2 >= bound(&best) {
+                continue;
+            }
+            let node = &self.nodes[index as usize];
+            if node.count > 0 {
+                for tri in self.leaf(node) {
+                    let q = closest_on_triangle(p, tri);
+                    let d2 = (q - p).norm_squared();
+                    if d2 < bound(&best) {
+                        best = Some((d2, q));
+                    }
+                }
+                continue;
+            }
+            let children = [node.first, node.first + 1].map(|c| (c, self.nodes[c as usize].bounds.distance2(p)));
+            let [near, far] = if children[0].1 <= children[1].1 { children } else { [children[1], children[0]] };
+            stack.push(far);
+            stack.push(near);
+        }
+        best.map(|(_, q)| q)
+    }
+
+    /// The smallest `t ≥ 0` at which `o + t d` hits a triangle (Möller–Trumbore).
+    pub(super) fn ray_intersect(&self, o: &Point3<f64>, d: &Vector3<f64>) -> Option<f64> {
+        if self.triangles.is_empty() {
+            return None;
+        }
+        let mut best = f64::INFINITY;
+        let mut stack = vec![0u32];
+        while let Some(index) = stack.pop() {
+            let node = &self.nodes[index as usize];
+            match node.bounds.ray_span(o, d) {
+                Some((t_in, t_out)) if t_out >= 0.0 && t_in <= best => {}
+                _ => continue,
+            }
+            if node.count > 0 {
+                for tri in self.leaf(node) {
+                    if let Some(t) = ray_triangle(o, d, tri) {
+                        best = best.min(t);
+                    }
+                }
+            } else {
+                stack.extend([node.first, node.first + 1]);
+            }
+        }
+        best.is_finite().then_some(best)
+    }
+
+    fn leaf(&self, node: &Node) -> &[[Point3<f64>; 3]] {
+        &self.triangles[node.first as usize..(node.first + node.count) as usize]
+    }
+}
+
+/// Fills node `index` with the triangles `order` (which start at `offset` in leaf order),
+/// splitting at the median centroid along the widest axis until leaves are small.
+fn build(
+    nodes: &mut Vec<Node>,
+    index: usize,
+    order: &mut [u32],
+    offset: u32,
+    triangles: &[[Point3<f64>; 3]],
+    centroids: &[Point3<f64>],
+) {
+    let mut bounds = Aabb::empty();
+    let mut spread = Aabb::empty();
+    for &i in order.iter() {
+        triangles[i as usize].iter().for_each(|v| bounds.grow(v));
+        spread.grow(&centroids[i as usize]);
+    }
+    if order.len() <= LEAF_SIZE {
+        nodes[index] = Node { bounds, first: offset, count: order.len() as u32 };
+        return;
+    }
+    let extent = spread.hi - spread.lo;
+    let axis = extent.iamax();
+    let mid = order.len() / 2;
+    order.select_nth_unstable_by(mid, |&a, &b| centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis]));
+    let first_child = nodes.len();
+    nodes[index] = Node { bounds, first: first_child as u32, count: 0 };
+    let placeholder = Node { bounds: Aabb::empty(), first: 0, count: 0 };
+    nodes.extend([placeholder, placeholder]);
+    let (left, right) = order.split_at_mut(mid);
+    build(nodes, first_child, left, offset, triangles, centroids);
+    build(nodes, first_child + 1, right, offset + mid as u32, triangles, centroids);
+}
+
+/// The closest point of triangle `abc` to `p` (Ericson, *Real-Time Collision Detection*,
+/// §5.1.5: find the Voronoi region of `p` among vertices, edges and face). Degenerate
+/// (zero-area) triangles fall back to their three edges.
+pub(super) fn closest_on_triangle(p: &Point3<f64>, [a, b, c]: &[Point3<f64>; 3]) -> Point3<f64> {
+    let (ab, ac) = (b - a, c - a);
+    if ab.cross(&ac).norm_squared() <= f64::MIN_POSITIVE {
+        return [(a, b), (b, c), (c, a)]
+            .map(|(s, e)| closest_on_segment(p, s, e))
+            .into_iter()
+            .min_by(|x, y| (x - p).norm_squared().total_cmp(&(y - p).norm_squared()))
+            .unwrap_or(*a);
+    }
+    let ap = p - a;
+    let (d1, d2) = (ab.dot(&ap), ac.dot(&ap));
+    if d1 <= 0.0 && d2 <= 0.0 {
+        return *a;
+    }
+    let bp = p - b;
+    let (d3, d4) = (ab.dot(&bp), ac.dot(&bp));
+    if d3 >= 0.0 && d4 <= d3 {
+        return *b;
+    }
+    let vc = d1 * d4 - d3 * d2;
+    if vc <= 0.0 && d1 >= 0.0 && d3 <= 0.0 {
+        return a + ab * (d1 / (d1 - d3)); // edge ab; d1 − d3 = |ab|²
+    }
+    let cp = p - c;
+    let (d5, d6) = (ab.dot(&cp), ac.dot(&cp));
+    if d6 >= 0.0 && d5 <= d6 {
+        return *c;
+    }
+    let vb = d5 * d2 - d1 * d6;
+    if vb <= 0.0 && d2 >= 0.0 && d6 <= 0.0 {
+        return a + ac * (d2 / (d2 - d6)); // edge ac; d2 − d6 = |ac|²
+    }
+    let va = d3 * d6 - d5 * d4;
+    if va <= 0.0 && d4 - d3 >= 0.0 && d5 - d6 >= 0.0 {
+        return b + (c - b) * ((d4 - d3) / ((d4 - d3) + (d5 - d6))); // edge bc; sum = |bc|²
+    }
+    let denom = 1.0 / (va + vb + vc);
+    a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// The closest point of segment `se` to `p` (a point if `s = e`).
+fn closest_on_segment(p: &Point3<f64>, s: &Point3<f64>, e: &Point3<f64>) -> Point3<f64> {
+    let se = e - s;
+    let len2 = se.norm_squared();
+    if len2 <= 0.0 {
+        return *s;
+    }
+    s + se * ((p - s).dot(&se) / len2).clamp(0.0, 1.0)
+}
+
+/// Möller–Trumbore ray/triangle intersection: `t ≥ 0` with `o + t d` in triangle `abc`
+/// (edges included). A ray parallel to the triangle's plane is reported as a miss.
+fn ray_triangle(o: &Point3<f64>, d: &Vector3<f64>, [a, b, c]: &[Point3<f64>; 3]) -> Option<f64> {
+    let (e1, e2) = (b - a, c - a);
+    let pv = d.cross(&e2);
+    let det = e1.dot(&pv);
+    if det == 0.0 || !det.is_finite() {
+        return None;
+    }
+    let inv = 1.0 / det;
+    let s = o - a;
+    let u = s.dot(&pv) * inv;
+    if !(0.0..=1.0).contains(&u) {
+        return None;
+    }
+    let q = s.cross(&e1);
+    let v = d.dot(&q) * inv;
+    if v < 0.0 || u + v > 1.0 {
+        return None;
+    }
+    let t = e2.dot(&q) * inv;
+    (t >= 0.0).then_some(t)
+}
