@@ -20,6 +20,7 @@
 //! bounding-radius class), so each point computes exact distances only to primitives
 //! whose bounding ball can beat the best distance found so far.
 
+use std::num::NonZeroUsize;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Point3;
@@ -60,9 +61,15 @@ impl<'a> PrimitiveIndex<'a> {
         for (i, p) in prims.iter().enumerate() {
             let (c, r) = (p.center(), p.bounding_radius());
             if !(c.coords.iter().all(|v| v.is_finite()) && r.is_finite() && r >= 0.0) {
-                return Err(Error::invalid(format!("primitive {i} has a non-finite centre or bounding radius")));
+                return Err(Error::invalid(format!(
+                    "primitive {i} has a non-finite centre or bounding radius"
+                )));
             }
-            let class = if r > 0.0 { r.log2().floor() as i32 } else { i32::MIN };
+            let class = if r > 0.0 {
+                r.log2().floor() as i32
+            } else {
+                i32::MIN
+            };
             match by_class.iter_mut().find(|(k, _)| *k == class) {
                 Some((_, ids)) => ids.push(i),
                 None => by_class.push((class, vec![i])),
@@ -71,11 +78,22 @@ impl<'a> PrimitiveIndex<'a> {
         let classes = by_class
             .into_iter()
             .map(|(_, ids)| {
-                let centres: Vec<[f64; 3]> = ids.iter().map(|&i| prims[i].center().coords.into()).collect();
-                let tree = ImmutableKdTree::new_from_slice(&centres)
-                    .map_err(|e| Error::invalid(format!("cannot index primitive centres: {e:?}")))?;
-                let max_radius = ids.iter().map(|&i| prims[i].bounding_radius()).fold(0.0, f64::max);
-                Ok(RadiusClass { tree, ids, max_radius })
+                let centres: Vec<[f64; 3]> = ids
+                    .iter()
+                    .map(|&i| prims[i].center().coords.into())
+                    .collect();
+                let tree = ImmutableKdTree::new_from_slice(&centres).map_err(|e| {
+                    Error::invalid(format!("cannot index primitive centres: {e:?}"))
+                })?;
+                let max_radius = ids
+                    .iter()
+                    .map(|&i| prims[i].bounding_radius())
+                    .fold(0.0, f64::max);
+                Ok(RadiusClass {
+                    tree,
+                    ids,
+                    max_radius,
+                })
             })
             .collect::<Result<Vec<_>>>()?;
         Ok(PrimitiveIndex { prims, classes })
@@ -98,12 +116,21 @@ impl<'a> PrimitiveIndex<'a> {
             }
         };
         for class in &self.classes {
-            let nn = class.tree.query(&q).nearest_one::<SquaredEuclidean<f64>>().execute();
+            let nn = class
+                .tree
+                .query(&q)
+                .nearest_one::<SquaredEuclidean<f64>>()
+                .execute();
             consider(class.ids[nn.item as usize], &mut best);
         }
         for class in &self.classes {
             let bound = best.map_or(f64::INFINITY, |(_, d)| d) + class.max_radius;
-            let hits = class.tree.query(&q).within::<SquaredEuclidean<f64>>(bound * bound).unsorted().execute();
+            let hits = class
+                .tree
+                .query(&q)
+                .within::<SquaredEuclidean<f64>>(bound * bound)
+                .unsorted()
+                .execute();
             for hit in hits {
                 let i = class.ids[hit.item as usize];
                 let lower = hit.distance.sqrt() - self.prims[i].bounding_radius();
@@ -123,16 +150,24 @@ pub fn point_to_model_distances(points: &[Point3<f64>], model: &[Primitive]) -> 
         return Ok(vec![f64::INFINITY; points.len()]);
     }
     let index = PrimitiveIndex::new(model)?;
-    Ok(points.par_iter().map(|p| index.nearest(p).map_or(f64::INFINITY, |(_, d)| d)).collect())
+    Ok(points
+        .par_iter()
+        .map(|p| index.nearest(p).map_or(f64::INFINITY, |(_, d)| d))
+        .collect())
 }
 
 /// Area-uniform samples of all of `model`'s surfaces at about `spacing` apart
 /// ([`Primitive::sample_surface`]), concatenated in model order.
 pub fn model_samples(model: &[Primitive], spacing: f64) -> Result<Vec<Point3<f64>>> {
     if !(spacing.is_finite() && spacing > 0.0) {
-        return Err(Error::invalid(format!("sample spacing must be positive and finite, got {spacing}")));
+        return Err(Error::invalid(format!(
+            "sample spacing must be positive and finite, got {spacing}"
+        )));
     }
-    let per: Vec<Vec<Point3<f64>>> = model.par_iter().map(|p| p.sample_surface(spacing)).collect();
+    let per: Vec<Vec<Point3<f64>>> = model
+        .par_iter()
+        .map(|p| p.sample_surface(spacing))
+        .collect();
     Ok(per.concat())
 }
 
@@ -149,7 +184,11 @@ pub fn nearest_cloud_distances(queries: &[Point3<f64>], cloud: &[Point3<f64>]) -
         .par_iter()
         .map(|q| {
             let q: [f64; 3] = q.coords.into();
-            tree.query(&q).nearest_one::<SquaredEuclidean<f64>>().execute().distance.sqrt()
+            tree.query(&q)
+                .nearest_one::<SquaredEuclidean<f64>>()
+                .execute()
+                .distance
+                .sqrt()
         })
         .collect())
 }
@@ -176,7 +215,11 @@ pub fn percentile(values: &[f64], q: f64) -> f64 {
 
 /// Mean of `values` (`+∞` when empty: no sample means no evidence of fit).
 fn mean(values: &[f64]) -> f64 {
-    if values.is_empty() { f64::INFINITY } else { values.iter().sum::<f64>() / values.len() as f64 }
+    if values.is_empty() {
+        f64::INFINITY
+    } else {
+        values.iter().sum::<f64>() / values.len() as f64
+    }
 }
 
 /// A primitive's sizes in scene units (shape sizes × pose scale), for matching.
@@ -200,7 +243,10 @@ pub fn same_type_and_size(a: &Primitive, b: &Primitive) -> bool {
     };
     a.shape.kind() == b.shape.kind()
         && meshes_agree
-        && scene_sizes(a).into_iter().zip(scene_sizes(b)).all(|(x, y)| close(x, y))
+        && scene_sizes(a)
+            .into_iter()
+            .zip(scene_sizes(b))
+            .all(|(x, y)| close(x, y))
 }
 
 /// Symmetric mean surface distance: the average of (mean distance from `a`'s samples to
@@ -232,9 +278,16 @@ pub struct Matching {
 /// [`same_type_and_size`] holds and their [`surface_distance`] is below `tolerance`
 /// (scene units); pairs are taken in increasing distance (ties: lower indices).
 /// `spacing` is the sample spacing used for the surface distance.
-pub fn match_primitives(fitted: &[Primitive], truth: &[Primitive], tolerance: f64, spacing: f64) -> Result<Matching> {
+pub fn match_primitives(
+    fitted: &[Primitive],
+    truth: &[Primitive],
+    tolerance: f64,
+    spacing: f64,
+) -> Result<Matching> {
     if !(tolerance.is_finite() && tolerance >= 0.0) {
-        return Err(Error::invalid(format!("match tolerance must be finite and ≥ 0, got {tolerance}")));
+        return Err(Error::invalid(format!(
+            "match tolerance must be finite and ≥ 0, got {tolerance}"
+        )));
     }
     match_with(fitted, truth, spacing, |_, _| tolerance)
 }
@@ -248,9 +301,13 @@ pub fn match_primitives_relative(
     spacing: f64,
 ) -> Result<Matching> {
     if !(fraction.is_finite() && fraction >= 0.0) {
-        return Err(Error::invalid(format!("match tolerance fraction must be finite and ≥ 0, got {fraction}")));
+        return Err(Error::invalid(format!(
+            "match tolerance fraction must be finite and ≥ 0, got {fraction}"
+        )));
     }
-    match_with(fitted, truth, spacing, |a, b| fraction * a.bounding_radius().min(b.bounding_radius()))
+    match_with(fitted, truth, spacing, |a, b| {
+        fraction * a.bounding_radius().min(b.bounding_radius())
+    })
 }
 
 /// Greedy matching with a per-pair tolerance function.
@@ -261,7 +318,9 @@ fn match_with(
     tolerance: impl Fn(&Primitive, &Primitive) -> f64 + Sync,
 ) -> Result<Matching> {
     if !(spacing.is_finite() && spacing > 0.0) {
-        return Err(Error::invalid(format!("sample spacing must be positive and finite, got {spacing}")));
+        return Err(Error::invalid(format!(
+            "sample spacing must be positive and finite, got {spacing}"
+        )));
     }
     let tolerance = &tolerance;
     let mut candidates: Vec<(f64, usize, usize)> = (0..fitted.len())
@@ -274,7 +333,8 @@ fn match_with(
                 }
                 // Disjoint bounding balls: every sample is at least the gap away.
                 let tol = tolerance(f, t);
-                let gap = (f.center() - t.center()).norm() - f.bounding_radius() - t.bounding_radius();
+                let gap =
+                    (f.center() - t.center()).norm() - f.bounding_radius() - t.bounding_radius();
                 if gap >= tol {
                     return None;
                 }
@@ -298,7 +358,11 @@ fn match_with(
     Ok(Matching {
         precision: ratio(fitted.len()),
         recall: ratio(truth.len()),
-        scene_accuracy: if pairs.len() == fitted.len() && pairs.len() == truth.len() { 1.0 } else { 0.0 },
+        scene_accuracy: if pairs.len() == fitted.len() && pairs.len() == truth.len() {
+            1.0
+        } else {
+            0.0
+        },
         pairs,
     })
 }
@@ -306,7 +370,8 @@ fn match_with(
 /// Options of [`evaluate`]; `None` fields take the documented defaults.
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct MetricsOptions {
-    /// Coverage threshold τ (scene units). Default: 1 % of the cloud's bounding-box diagonal.
+    /// Coverage threshold τ (scene units). Default: [`default_coverage_tau`], twice the
+    /// cloud's median nearest-neighbour distance.
     pub coverage_tau: Option<f64>,
     /// Spacing of the model samples for model→point and chamfer (scene units). Default:
     /// `sqrt(model area / n)` with `n` = the number of input points clamped to
@@ -353,7 +418,10 @@ impl Metrics {
     pub fn to_json(&self) -> Value {
         let mut m = Map::new();
         let mut put = |k: &str, v: f64| {
-            m.insert(k.into(), serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number));
+            m.insert(
+                k.into(),
+                serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number),
+            );
         };
         put("point_to_model_mean", self.point_to_model_mean);
         put("point_to_model_p95", self.point_to_model_p95);
@@ -375,9 +443,37 @@ impl Metrics {
     }
 }
 
-/// Default coverage τ: 1 % of the bounding-box diagonal of `points`.
+/// Default coverage τ: twice the cloud's median nearest-neighbour distance (its sampling
+/// resolution), estimated on an evenly strided subsample of at most 10 000 points; when
+/// that is 0 (duplicates, a single point) 1 % of the bounding-box diagonal. Scene units.
 pub fn default_coverage_tau(points: &[Point3<f64>]) -> f64 {
-    bounds_of(points).map_or(0.0, |(lo, hi)| 0.01 * (hi - lo).norm())
+    let diagonal = bounds_of(points).map_or(0.0, |(lo, hi)| (hi - lo).norm());
+    if points.len() < 2 {
+        return 0.01 * diagonal;
+    }
+    let pts: Vec<[f64; 3]> = points.iter().map(|p| p.coords.into()).collect();
+    let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(&pts) else {
+        return 0.01 * diagonal;
+    };
+    let stride = points.len().div_ceil(10_000);
+    let two = NonZeroUsize::new(2).expect("2 > 0");
+    let nn: Vec<f64> = pts
+        .par_iter()
+        .step_by(stride)
+        .map(|q| {
+            let hits = tree
+                .query(q)
+                .nearest_n::<SquaredEuclidean<f64>>(two)
+                .execute();
+            hits.iter().map(|h| h.distance).fold(0.0, f64::max).sqrt()
+        })
+        .collect();
+    let median = percentile(&nn, 0.5);
+    if median > 0.0 {
+        2.0 * median
+    } else {
+        0.01 * diagonal
+    }
 }
 
 /// Default model sample spacing (see [`MetricsOptions::sample_spacing`]); 1 for an
@@ -385,7 +481,11 @@ pub fn default_coverage_tau(points: &[Point3<f64>]) -> f64 {
 pub fn default_sample_spacing(model: &[Primitive], points: usize) -> f64 {
     let area: f64 = model.iter().map(Primitive::area).sum();
     let n = points.clamp(1000, 1_000_000) as f64;
-    if area > 0.0 && area.is_finite() { (area / n).sqrt() } else { 1.0 }
+    if area > 0.0 && area.is_finite() {
+        (area / n).sqrt()
+    } else {
+        1.0
+    }
 }
 
 /// All measures of DESIGN §4 for `model` against `cloud`, and precision / recall /
@@ -397,16 +497,28 @@ pub fn evaluate(
     options: &MetricsOptions,
 ) -> Result<Metrics> {
     if cloud.is_empty() {
-        return Err(Error::invalid("cannot evaluate a model against an empty point cloud"));
+        return Err(Error::invalid(
+            "cannot evaluate a model against an empty point cloud",
+        ));
     }
-    let tau = options.coverage_tau.unwrap_or_else(|| default_coverage_tau(cloud));
+    let tau = options
+        .coverage_tau
+        .unwrap_or_else(|| default_coverage_tau(cloud));
     if !(tau.is_finite() && tau >= 0.0) {
-        return Err(Error::invalid(format!("coverage τ must be finite and ≥ 0, got {tau}")));
+        return Err(Error::invalid(format!(
+            "coverage τ must be finite and ≥ 0, got {tau}"
+        )));
     }
-    let spacing = options.sample_spacing.unwrap_or_else(|| default_sample_spacing(model, cloud.len()));
+    let spacing = options
+        .sample_spacing
+        .unwrap_or_else(|| default_sample_spacing(model, cloud.len()));
     let d_pm = point_to_model_distances(cloud, model)?;
     let samples = model_samples(model, spacing)?;
-    let d_mp = if samples.is_empty() { Vec::new() } else { nearest_cloud_distances(&samples, cloud)? };
+    let d_mp = if samples.is_empty() {
+        Vec::new()
+    } else {
+        nearest_cloud_distances(&samples, cloud)?
+    };
     let chamfer = if model.is_empty() {
         f64::INFINITY
     } else {

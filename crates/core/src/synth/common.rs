@@ -28,7 +28,10 @@ impl Scene {
     /// The truth with the misalignment undone: these primitives lie on [`Scene::lattice`].
     pub fn aligned_truth(&self) -> Vec<Primitive> {
         let inv = inverse_rigid(&self.misalignment);
-        self.truth.iter().map(|p| Primitive::new(p.shape.clone(), inv.compose(&p.pose))).collect()
+        self.truth
+            .iter()
+            .map(|p| Primitive::new(p.shape.clone(), inv.compose(&p.pose)))
+            .collect()
     }
 }
 
@@ -51,9 +54,13 @@ impl LatticeHint {
     /// (sizes equal within 1e-9 relative).
     pub fn contains(&self, p: &Primitive, tol: f64) -> bool {
         let grid = (p.pose.translation - self.origin.coords) / self.spacing;
-        let on_grid = grid.iter().all(|g| (g - g.round()).abs() * self.spacing <= tol);
+        let on_grid = grid
+            .iter()
+            .all(|g| (g - g.round()).abs() * self.spacing <= tol);
         let m = p.pose.rotation.to_rotation_matrix().into_inner();
-        let axis_aligned = m.iter().all(|v| v.abs() < 1e-9 || (v.abs() - 1.0).abs() < 1e-9);
+        let axis_aligned = m
+            .iter()
+            .all(|v| v.abs() < 1e-9 || (v.abs() - 1.0).abs() < 1e-9);
         let shape_known = self.shapes.iter().any(|s| same_shape(s, &p.shape, 1e-9));
         on_grid && axis_aligned && (p.pose.scale - 1.0).abs() < 1e-12 && shape_known
     }
@@ -67,14 +74,29 @@ pub(crate) fn same_shape(a: &Shape, b: &Shape, rel: f64) -> bool {
         (Shape::Disk { diameter: x }, Shape::Disk { diameter: y })
         | (Shape::Sphere { diameter: x }, Shape::Sphere { diameter: y })
         | (Shape::Square { side: x }, Shape::Square { side: y }) => close(*x, *y),
-        (Shape::Cylinder { length: l1, radius: r1 }, Shape::Cylinder { length: l2, radius: r2 }) => {
-            close(*l1, *l2) && close(*r1, *r2)
-        }
-        (Shape::Elbow { bend: b1, radius: r1 }, Shape::Elbow { bend: b2, radius: r2 }) => {
-            close(*b1, *b2) && close(*r1, *r2)
-        }
+        (
+            Shape::Cylinder {
+                length: l1,
+                radius: r1,
+            },
+            Shape::Cylinder {
+                length: l2,
+                radius: r2,
+            },
+        ) => close(*l1, *l2) && close(*r1, *r2),
+        (
+            Shape::Elbow {
+                bend: b1,
+                radius: r1,
+            },
+            Shape::Elbow {
+                bend: b2,
+                radius: r2,
+            },
+        ) => close(*b1, *b2) && close(*r1, *r2),
         (Shape::Mesh(m1), Shape::Mesh(m2)) => {
-            m1.source == m2.source && (std::sync::Arc::ptr_eq(&m1.mesh, &m2.mesh) || m1.mesh == m2.mesh)
+            m1.source == m2.source
+                && (std::sync::Arc::ptr_eq(&m1.mesh, &m2.mesh) || m1.mesh == m2.mesh)
         }
         _ => false,
     }
@@ -98,7 +120,9 @@ impl Density {
                 non_negative("density", d)?;
                 let n = (d * area).round();
                 if n > 1e9 {
-                    return Err(Error::invalid(format!("density {d} × area {area} asks for {n} points (limit 1e9)")));
+                    return Err(Error::invalid(format!(
+                        "density {d} × area {area} asks for {n} points (limit 1e9)"
+                    )));
                 }
                 Ok(n as usize)
             }
@@ -163,7 +187,9 @@ impl Misalignment {
 pub fn axis_rotation(axis: usize) -> UnitQuaternion<f64> {
     let e = |i: usize| Vector3::ith(i % 3, 1.0);
     let (x, y, z) = (e(axis + 1), e(axis + 2), e(axis));
-    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[x, y, z])))
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(Matrix3::from_columns(
+        &[x, y, z],
+    )))
 }
 
 /// The rotation of an elbow whose centre line enters with tangent `d_in` and leaves with
@@ -189,7 +215,9 @@ pub fn elbow_rotation(d_in: &Vector3<f64>, d_out: &Vector3<f64>) -> Result<UnitQ
         ez = -ez;
     }
     let m = Matrix3::from_columns(&[ex, ey, ez]);
-    Ok(UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m)))
+    Ok(UnitQuaternion::from_rotation_matrix(
+        &Rotation3::from_matrix_unchecked(m),
+    ))
 }
 
 /// One area-uniform random point on `shape`'s surface, in its local frame.
@@ -252,7 +280,9 @@ pub(crate) fn mesh_cdf(mesh: &TriMesh) -> Vec<f64> {
 pub(crate) fn sample_mesh<R: Rng>(mesh: &TriMesh, cdf: &[f64], rng: &mut R) -> Point3<f64> {
     let total = cdf.last().copied().unwrap_or(0.0);
     let target = rng.random::<f64>() * total;
-    let i = cdf.partition_point(|&c| c <= target).min(cdf.len().saturating_sub(1));
+    let i = cdf
+        .partition_point(|&c| c <= target)
+        .min(cdf.len().saturating_sub(1));
     let [a, b, c] = mesh.faces[i].map(|k| mesh.vertices[k as usize]);
     let (mut s, mut t) = (rng.random::<f64>(), rng.random::<f64>());
     if s + t > 1.0 {
@@ -316,7 +346,9 @@ pub(crate) fn sample_pieces<R: Rng>(
     let total: f64 = areas.iter().sum();
     let n = density.count(total)?;
     if n > 0 && !(total > 0.0 && total.is_finite()) {
-        return Err(Error::invalid("cannot sample points: the surfaces have no area"));
+        return Err(Error::invalid(
+            "cannot sample points: the surfaces have no area",
+        ));
     }
     let drifts: Vec<Vector3<f64>> = pieces
         .iter()
@@ -325,7 +357,10 @@ pub(crate) fn sample_pieces<R: Rng>(
     let mesh_cdfs: Vec<Option<Vec<f64>>> = pieces
         .iter()
         .map(|p| match p {
-            Piece::Prim(Primitive { shape: Shape::Mesh(m), .. }) => Some(mesh_cdf(&m.mesh)),
+            Piece::Prim(Primitive {
+                shape: Shape::Mesh(m),
+                ..
+            }) => Some(mesh_cdf(&m.mesh)),
             _ => None,
         })
         .collect();
@@ -345,7 +380,9 @@ pub(crate) fn sample_pieces<R: Rng>(
                 };
                 prim.pose.to_scene(&local)
             }
-            Piece::Rect { corner, u, v } => corner + u * rng.random::<f64>() + v * rng.random::<f64>(),
+            Piece::Rect { corner, u, v } => {
+                corner + u * rng.random::<f64>() + v * rng.random::<f64>()
+            }
         };
         let jitter = Vector3::new(gauss(rng), gauss(rng), gauss(rng)) * noise.jitter;
         out.push(p + drifts[i] + jitter);
@@ -365,7 +402,13 @@ pub(crate) fn misalign<R: Rng>(
     let pivot = if truth.is_empty() {
         Point3::origin()
     } else {
-        Point3::from(truth.iter().map(|p| p.center().coords).sum::<Vector3<f64>>() / truth.len() as f64)
+        Point3::from(
+            truth
+                .iter()
+                .map(|p| p.center().coords)
+                .sum::<Vector3<f64>>()
+                / truth.len() as f64,
+        )
     };
     let pose = mis.draw(rng, spacing, pivot);
     for p in points.iter_mut() {
@@ -388,7 +431,9 @@ pub(crate) fn positive(name: &str, v: f64) -> Result<()> {
     if v.is_finite() && v > 0.0 {
         Ok(())
     } else {
-        Err(Error::invalid(format!("{name} must be positive and finite, got {v}")))
+        Err(Error::invalid(format!(
+            "{name} must be positive and finite, got {v}"
+        )))
     }
 }
 
@@ -397,6 +442,8 @@ pub(crate) fn non_negative(name: &str, v: f64) -> Result<()> {
     if v.is_finite() && v >= 0.0 {
         Ok(())
     } else {
-        Err(Error::invalid(format!("{name} must be finite and ≥ 0, got {v}")))
+        Err(Error::invalid(format!(
+            "{name} must be finite and ≥ 0, got {v}"
+        )))
     }
 }

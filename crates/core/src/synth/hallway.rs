@@ -4,7 +4,10 @@ use nalgebra::{Point3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::common::{Density, LatticeHint, Misalignment, Noise, Piece, Scene, axis_rotation, misalign, positive, sample_pieces};
+use super::common::{
+    Density, LatticeHint, Misalignment, Noise, Piece, Scene, axis_rotation, misalign, positive,
+    sample_pieces,
+};
 use crate::atlas::Shape;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 
@@ -44,7 +47,10 @@ impl Default for HallwayParams {
             side: 1.0,
             ceiling: false,
             density: Density::PerArea(100.0),
-            noise: Noise { jitter: 0.01, drift: 0.0 },
+            noise: Noise {
+                jitter: 0.01,
+                drift: 0.0,
+            },
             misalignment: Misalignment::default(),
             seed: 0,
         }
@@ -67,7 +73,13 @@ fn tile_indices(extent: f64, side: f64) -> Vec<i64> {
 /// A hallway tiled with squares of side `side` whose centres lie on the lattice of
 /// spacing `side/2`; points are drawn on the true (untiled) surfaces.
 pub fn hallway(params: &HallwayParams) -> Result<Scene> {
-    let HallwayParams { length, width, height, side, .. } = *params;
+    let HallwayParams {
+        length,
+        width,
+        height,
+        side,
+        ..
+    } = *params;
     positive("hallway length", length)?;
     positive("hallway width", width)?;
     positive("hallway height", height)?;
@@ -81,9 +93,15 @@ pub fn hallway(params: &HallwayParams) -> Result<Scene> {
         }
     }
     if length < side - 1e-12 {
-        return Err(Error::invalid(format!("hallway length ({length}) must be at least one square side ({side})")));
+        return Err(Error::invalid(format!(
+            "hallway length ({length}) must be at least one square side ({side})"
+        )));
     }
-    let (ix, iy, iz) = (tile_indices(length, side), tile_indices(width, side), tile_indices(height, side));
+    let (ix, iy, iz) = (
+        tile_indices(length, side),
+        tile_indices(width, side),
+        tile_indices(height, side),
+    );
     let (ny, nz) = ((width / s).round() as i64, (height / s).round() as i64);
     let shape = Shape::Square { side };
     let tile = |axis: usize, g: [i64; 3]| {
@@ -92,20 +110,40 @@ pub fn hallway(params: &HallwayParams) -> Result<Scene> {
     };
     let mut truth = Vec::new();
     let mut pieces = Vec::new();
-    let (lx, ly, lz) = (Vector3::x() * length, Vector3::y() * width, Vector3::z() * height);
+    let (lx, ly, lz) = (
+        Vector3::x() * length,
+        Vector3::y() * width,
+        Vector3::z() * height,
+    );
     // Floor (normal z) and optional ceiling.
     let mut horizontals = vec![0];
     if params.ceiling {
         horizontals.push(nz);
     }
     for &k in &horizontals {
-        truth.extend(ix.iter().flat_map(|&i| iy.iter().map(move |&j| (i, j))).map(|(i, j)| tile(2, [i, j, k])));
-        pieces.push(Piece::Rect { corner: Point3::new(0.0, 0.0, k as f64 * s), u: lx, v: ly });
+        truth.extend(
+            ix.iter()
+                .flat_map(|&i| iy.iter().map(move |&j| (i, j)))
+                .map(|(i, j)| tile(2, [i, j, k])),
+        );
+        pieces.push(Piece::Rect {
+            corner: Point3::new(0.0, 0.0, k as f64 * s),
+            u: lx,
+            v: ly,
+        });
     }
     // Walls (normal y) at y = 0 and y = width.
     for j in [0, ny] {
-        truth.extend(ix.iter().flat_map(|&i| iz.iter().map(move |&k| (i, k))).map(|(i, k)| tile(1, [i, j, k])));
-        pieces.push(Piece::Rect { corner: Point3::new(0.0, j as f64 * s, 0.0), u: lx, v: lz });
+        truth.extend(
+            ix.iter()
+                .flat_map(|&i| iz.iter().map(move |&k| (i, k)))
+                .map(|(i, k)| tile(1, [i, j, k])),
+        );
+        pieces.push(Piece::Rect {
+            corner: Point3::new(0.0, j as f64 * s, 0.0),
+            u: lx,
+            v: lz,
+        });
     }
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let mut points = sample_pieces(&pieces, params.density, params.noise, &mut rng)?;
@@ -113,7 +151,11 @@ pub fn hallway(params: &HallwayParams) -> Result<Scene> {
     Ok(Scene {
         cloud: PointCloud::from_points(points),
         truth,
-        lattice: LatticeHint { spacing: s, origin: Point3::origin(), shapes: vec![shape] },
+        lattice: LatticeHint {
+            spacing: s,
+            origin: Point3::origin(),
+            shapes: vec![shape],
+        },
         misalignment,
     })
 }
@@ -124,7 +166,10 @@ mod tests {
 
     #[test]
     fn tile_indices_cover_with_overlap_at_end() {
-        assert_eq!(tile_indices(10.0, 1.0), vec![1, 3, 5, 7, 9, 11, 13, 15, 17, 19]);
+        assert_eq!(
+            tile_indices(10.0, 1.0),
+            vec![1, 3, 5, 7, 9, 11, 13, 15, 17, 19]
+        );
         assert_eq!(tile_indices(2.5, 1.0), vec![1, 3, 4]);
         assert_eq!(tile_indices(1.0, 1.0), vec![1]);
         // 10.3 m: last centre at 10 m (grid point ≥ 9.8), overhang 0.2 m.

@@ -4,7 +4,9 @@ use nalgebra::{Point3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::common::{Density, LatticeHint, Noise, Piece, Scene, axis_rotation, non_negative, positive, sample_pieces};
+use super::common::{
+    Density, LatticeHint, Noise, Piece, Scene, axis_rotation, non_negative, positive, sample_pieces,
+};
 use crate::atlas::Shape;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 
@@ -42,7 +44,10 @@ impl Default for NineCylinderParams {
             radius: 0.2,
             height: 1.0,
             density: Density::PerArea(200.0),
-            noise: Noise { jitter: 0.01, drift: 0.01 },
+            noise: Noise {
+                jitter: 0.01,
+                drift: 0.01,
+            },
             offset: 0.0,
             seed: 0,
         }
@@ -55,7 +60,10 @@ fn validate(p: &NineCylinderParams) -> Result<()> {
     positive("cylinder height", p.height)?;
     non_negative("alignment offset", p.offset)?;
     if p.mask >= 512 {
-        return Err(Error::invalid(format!("nine-cylinder mask {} must be below 512 (9 bits)", p.mask)));
+        return Err(Error::invalid(format!(
+            "nine-cylinder mask {} must be below 512 (9 bits)",
+            p.mask
+        )));
     }
     if p.pitch <= 2.0 * p.radius {
         return Err(Error::invalid(format!(
@@ -70,7 +78,10 @@ fn validate(p: &NineCylinderParams) -> Result<()> {
 /// The nine candidate cylinders (index k ↔ bit k of the mask), on the aligned lattice.
 pub fn nine_cylinders_candidates(params: &NineCylinderParams) -> Result<Vec<Primitive>> {
     validate(params)?;
-    let shape = Shape::Cylinder { length: params.height, radius: params.radius };
+    let shape = Shape::Cylinder {
+        length: params.height,
+        radius: params.radius,
+    };
     Ok((0..9)
         .map(|k| {
             let t = Vector3::new((k % 3) as f64 - 1.0, (k / 3) as f64 - 1.0, 0.0) * params.pitch;
@@ -83,14 +94,19 @@ pub fn nine_cylinders_candidates(params: &NineCylinderParams) -> Result<Vec<Prim
 /// drift, then shifted by the alignment offset (cloud and truth; the candidates stay).
 pub fn nine_cylinders(params: &NineCylinderParams) -> Result<Scene> {
     let candidates = nine_cylinders_candidates(params)?;
-    let mut truth: Vec<Primitive> =
-        candidates.into_iter().enumerate().filter(|(k, _)| params.mask >> k & 1 == 1).map(|(_, p)| p).collect();
+    let mut truth: Vec<Primitive> = candidates
+        .into_iter()
+        .enumerate()
+        .filter(|(k, _)| params.mask >> k & 1 == 1)
+        .map(|(_, p)| p)
+        .collect();
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let pieces: Vec<Piece> = truth.iter().cloned().map(Piece::Prim).collect();
     let mut points = sample_pieces(&pieces, params.density, params.noise, &mut rng)?;
     let mut misalignment = Pose::identity();
     if params.offset > 0.0 {
-        let dir = [Vector3::x(), -Vector3::x(), Vector3::y(), -Vector3::y()][rng.random_range(0..4)];
+        let dir =
+            [Vector3::x(), -Vector3::x(), Vector3::y(), -Vector3::y()][rng.random_range(0..4)];
         misalignment.translation = dir * (rng.random::<f64>() * params.offset * params.pitch);
         for p in &mut points {
             *p += misalignment.translation;
@@ -105,7 +121,10 @@ pub fn nine_cylinders(params: &NineCylinderParams) -> Result<Scene> {
         lattice: LatticeHint {
             spacing: params.pitch,
             origin: Point3::origin(),
-            shapes: vec![Shape::Cylinder { length: params.height, radius: params.radius }],
+            shapes: vec![Shape::Cylinder {
+                length: params.height,
+                radius: params.radius,
+            }],
         },
         misalignment,
     })

@@ -8,7 +8,9 @@ use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::common::{LatticeHint, Noise, Piece, Scene, Density, non_negative, positive, random_unit, sample_pieces};
+use super::common::{
+    Density, LatticeHint, Noise, Piece, Scene, non_negative, positive, random_unit, sample_pieces,
+};
 use crate::atlas::{MeshShape, Shape, TriMesh};
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 
@@ -81,18 +83,40 @@ pub fn registration(mesh: &MeshShape, params: &RegistrationParams) -> Result<Sce
     let rotation = random_rotation(&mut rng);
     let t = params.translation;
     let translation = Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * t);
-    let scale = params.scale.map_or(1.0, |(lo, hi)| lo + (hi - lo) * rng.random::<f64>());
-    let truth = Primitive::new(shape, Pose { rotation, translation, scale });
-    let noise = Noise { jitter: params.noise.jitter, drift: 0.0 };
-    let mut points =
-        sample_pieces(&[Piece::Prim(truth.clone())], Density::Total(params.inliers), noise, &mut rng)?;
+    let scale = params
+        .scale
+        .map_or(1.0, |(lo, hi)| lo + (hi - lo) * rng.random::<f64>());
+    let truth = Primitive::new(
+        shape,
+        Pose {
+            rotation,
+            translation,
+            scale,
+        },
+    );
+    let noise = Noise {
+        jitter: params.noise.jitter,
+        drift: 0.0,
+    };
+    let mut points = sample_pieces(
+        &[Piece::Prim(truth.clone())],
+        Density::Total(params.inliers),
+        noise,
+        &mut rng,
+    )?;
     let half = params.outlier_box * truth.bounding_radius();
     points.extend((0..params.outliers).map(|_| {
-        Point3::from(translation + Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * half))
+        Point3::from(
+            translation + Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * half),
+        )
     }));
     Ok(Scene {
         cloud: PointCloud::from_points(points),
-        lattice: LatticeHint { spacing: truth.bounding_radius(), origin: Point3::origin(), shapes: vec![truth.shape.clone()] },
+        lattice: LatticeHint {
+            spacing: truth.bounding_radius(),
+            origin: Point3::origin(),
+            shapes: vec![truth.shape.clone()],
+        },
         truth: vec![truth],
         misalignment: Pose::identity(),
     })
@@ -115,11 +139,17 @@ pub fn asymmetric_object() -> MeshShape {
     ];
     for v in &mut vertices {
         let u = v.coords.normalize();
-        let r = 1.0 + bumps.iter().map(|(d, h)| h * (-(u - d).norm_squared() / 0.3).exp()).sum::<f64>();
+        let r = 1.0
+            + bumps
+                .iter()
+                .map(|(d, h)| h * (-(u - d).norm_squared() / 0.3).exp())
+                .sum::<f64>();
         let s = u * r;
         *v = Point3::new(s.x, 0.7 * s.y, 0.5 * s.z) * 0.5;
     }
-    MeshShape { source: "asymmetric_object".into(), mesh: Arc::new(TriMesh { vertices, faces }) }
+    // A closed icosphere with finite vertices always has faces of positive area.
+    MeshShape::new("asymmetric_object", Arc::new(TriMesh { vertices, faces }))
+        .expect("procedural mesh is valid")
 }
 
 /// The unit icosahedron (outward counter-clockwise faces).
@@ -139,7 +169,10 @@ fn icosahedron() -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
         (-t, 0.0, -1.0),
         (-t, 0.0, 1.0),
     ];
-    let vertices = raw.iter().map(|&(x, y, z)| Point3::from(Vector3::new(x, y, z).normalize())).collect();
+    let vertices = raw
+        .iter()
+        .map(|&(x, y, z)| Point3::from(Vector3::new(x, y, z).normalize()))
+        .collect();
     let faces = vec![
         [0, 11, 5],
         [0, 5, 1],
@@ -177,7 +210,11 @@ fn subdivide(vertices: &mut Vec<Point3<f64>>, faces: &[[u32; 3]]) -> Vec<[u32; 3
     };
     let mut out = Vec::with_capacity(faces.len() * 4);
     for &[a, b, c] in faces {
-        let (ab, bc, ca) = (midpoint(a, b, vertices), midpoint(b, c, vertices), midpoint(c, a, vertices));
+        let (ab, bc, ca) = (
+            midpoint(a, b, vertices),
+            midpoint(b, c, vertices),
+            midpoint(c, a, vertices),
+        );
         out.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
     }
     out

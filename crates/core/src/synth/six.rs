@@ -5,7 +5,9 @@ use nalgebra::{Point3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::common::{LatticeHint, Scene, axis_rotation, gauss, non_negative, positive, sample_shape_local};
+use super::common::{
+    LatticeHint, Scene, axis_rotation, gauss, non_negative, positive, sample_shape_local,
+};
 use crate::atlas::Shape;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 
@@ -79,11 +81,16 @@ pub fn six_in_a_row(params: &SixInARowParams) -> Result<SixInARow> {
     positive("size", params.size)?;
     non_negative("jitter", params.jitter)?;
     if params.true_index >= 6 {
-        return Err(Error::invalid(format!("true_index ({}) must be in 0..6", params.true_index)));
+        return Err(Error::invalid(format!(
+            "true_index ({}) must be in 0..6",
+            params.true_index
+        )));
     }
     let g = params.first / params.step;
     if (g - g.round()).abs() > 1e-9 {
-        return Err(Error::invalid("the first distance must be a multiple of the step (lattice)"));
+        return Err(Error::invalid(
+            "the first distance must be a multiple of the step (lattice)",
+        ));
     }
     let (shape, rot) = match params.variant {
         SixVariant::Squares => (Shape::Square { side: params.size }, axis_rotation(0)),
@@ -91,7 +98,13 @@ pub fn six_in_a_row(params: &SixInARowParams) -> Result<SixInARow> {
             if params.size / 4.0 >= params.first {
                 return Err(Error::invalid("the cylinders must not contain the sensor"));
             }
-            (Shape::Cylinder { length: params.size, radius: params.size / 4.0 }, axis_rotation(2))
+            (
+                Shape::Cylinder {
+                    length: params.size,
+                    radius: params.size / 4.0,
+                },
+                axis_rotation(2),
+            )
         }
     };
     let candidates: Vec<Primitive> = (0..6)
@@ -124,7 +137,11 @@ pub fn six_in_a_row(params: &SixInARowParams) -> Result<SixInARow> {
         scene: Scene {
             cloud,
             truth: vec![truth],
-            lattice: LatticeHint { spacing: params.step, origin: Point3::origin(), shapes: vec![shape] },
+            lattice: LatticeHint {
+                spacing: params.step,
+                origin: Point3::origin(),
+                shapes: vec![shape],
+            },
             misalignment: Pose::identity(),
         },
         candidates,
