@@ -328,14 +328,12 @@ fn match_with(
         .flat_map_iter(|i| {
             let f = &fitted[i];
             truth.iter().enumerate().filter_map(move |(j, t)| {
-                if !same_type_and_size(f, t) {
-                    return None;
-                }
-                // Disjoint bounding balls: every sample is at least the gap away.
+                // Disjoint bounding balls: every sample is at least the gap away, so the
+                // mean surface distance is too.
                 let tol = tolerance(f, t);
                 let gap =
                     (f.center() - t.center()).norm() - f.bounding_radius() - t.bounding_radius();
-                if gap >= tol {
+                if gap >= tol || !same_type_and_size(f, t) {
                     return None;
                 }
                 let d = surface_distance(f, t, spacing);

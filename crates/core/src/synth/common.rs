@@ -20,7 +20,7 @@ pub struct Scene {
     /// The lattice the truth was built on (before misalignment).
     pub lattice: LatticeHint,
     /// The rigid misalignment applied to cloud and truth (identity when none):
-    /// `misalignment.inverse-applied` truth lies on [`Scene::lattice`].
+    /// undoing it ([`Scene::aligned_truth`]) puts the truth back on [`Scene::lattice`].
     pub misalignment: Pose,
 }
 

@@ -1,7 +1,7 @@
 //! Synthetic scenes with ground truth (DESIGN §1 `synth`).
 //!
 //! Every generator takes a params struct (with [`Default`] and a `seed`), draws from a
-//! seeded [`ChaCha8Rng`] (same seed ⇒ bit-identical scene), and returns a [`Scene`]:
+//! seeded [`rand_chacha::ChaCha8Rng`] (same seed ⇒ bit-identical scene), and returns a [`Scene`]:
 //! the point cloud, the true primitives, and the [`LatticeHint`] on which the truth
 //! lives, so a test can build the matching candidate set.
 //!
