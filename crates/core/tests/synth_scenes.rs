@@ -228,9 +228,9 @@ fn pipe_parts_join_on_the_lattice_without_overlap() {
         // Parts that are not neighbours in the chain stay apart.
         let samples: Vec<Vec<Point3<f64>>> =
             s.truth.iter().map(|t| t.sample_surface(0.02)).collect();
-        for i in 0..s.truth.len() {
+        for (i, samples_i) in samples.iter().enumerate() {
             for j in i + 2..s.truth.len() {
-                let d = samples[i]
+                let d = samples_i
                     .iter()
                     .map(|x| s.truth[j].distance(x))
                     .fold(f64::INFINITY, f64::min);
