@@ -11,7 +11,7 @@
 //! | `bend` | `spacing` (elbow centre-line radius) |
 //! | `cap` | `spacing`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; `d_cap = cap²` |
 //! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
-//! | `beta` | 16 candidates per point |
+//! | `beta` | 32 candidates per point (24 was the least that recovered every synthetic pipe) |
 //! | `alpha` | 10 samples per candidate (thesis §6.3), `independent` model only |
 //! | lattice origin | the scene origin; frame: the scene axes |
 
@@ -153,7 +153,7 @@ impl Settings {
             .bounds()
             .ok_or_else(|| Error::invalid("the cloud is empty"))?;
         let diagonal = (hi - lo).norm();
-        if !(diagonal > 0.0) {
+        if diagonal.is_nan() || diagonal <= 0.0 {
             return Err(Error::invalid(
                 "the cloud has no extent (all points coincide)",
             ));
@@ -197,7 +197,7 @@ impl Settings {
                 PointModel::Independent => limit(o.alpha, 10),
                 PointModel::Existence => None,
             },
-            beta: limit(o.beta, 16),
+            beta: limit(o.beta, 32),
             cap: cap * cap,
             surface_distance: o.model == PointModel::Existence,
             primitive_weight: o.primitive_weight.unwrap_or(1.0),

@@ -69,7 +69,7 @@ impl Pose {
         let t = numbers(v.get("translation"), 3, "pose.translation")?;
         let q = numbers(v.get("rotation"), 4, "pose.rotation")?;
         let quaternion = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
-        if !(quaternion.norm() > 1e-12) {
+        if quaternion.norm().is_nan() || quaternion.norm() <= 1e-12 {
             return Err(Error::invalid(
                 "pose.rotation must be a non-zero quaternion [w, x, y, z]",
             ));

@@ -31,22 +31,18 @@ pub struct EvalArgs {
     pub json: bool,
 }
 
-/// The DESIGN §4 measures with default options (an empty cloud gives an all-zero report).
-pub fn measure(cloud: &PointCloud, model: &[Primitive], truth: Option<&[Primitive]>) -> Metrics {
-    evaluate(&cloud.points, model, truth, &MetricsOptions::default()).unwrap_or_else(|_| Metrics {
-        points: 0,
-        primitives: model.len(),
-        point_to_model_mean: f64::NAN,
-        point_to_model_p95: f64::NAN,
-        point_to_model_max: f64::NAN,
-        model_to_point_mean: f64::NAN,
-        coverage: 0.0,
-        coverage_tau: 0.0,
-        chamfer: f64::NAN,
-        compactness: 0.0,
-        sample_spacing: 0.0,
-        truth: None,
-    })
+/// The DESIGN §4 measures with default options.
+pub fn measure(
+    cloud: &PointCloud,
+    model: &[Primitive],
+    truth: Option<&[Primitive]>,
+) -> Result<Metrics> {
+    Ok(evaluate(
+        &cloud.points,
+        model,
+        truth,
+        &MetricsOptions::default(),
+    )?)
 }
 
 /// Reads the primitives of a result JSON; mesh sources are resolved relative to it.

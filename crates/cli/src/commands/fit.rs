@@ -58,7 +58,7 @@ pub struct FitArgs {
     /// α: samples per candidate and point (independent model) [default: 10; `inf` = all].
     #[arg(long, value_parser = parse_limit)]
     pub alpha: Option<usize>,
-    /// β: candidates per point [default: 16; `inf` = all].
+    /// β: candidates per point [default: 32; `inf` = all].
     #[arg(long, value_parser = parse_limit)]
     pub beta: Option<usize>,
     /// Distance whose square is the cost of an unexplained point [default: spacing].
@@ -157,7 +157,7 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
     let bars = Bars::new(out.quiet, out.verbose);
     let result = fit(&cloud, &options, &bars)
         .with_context(|| format!("fitting {}", args.scene.display()))?;
-    let metrics = super::eval::measure(&cloud, &result.primitives, None);
+    let metrics = super::eval::measure(&cloud, &result.primitives, None)?;
     let encoding = if args.ascii {
         Encoding::Ascii
     } else {
