@@ -1,0 +1,324 @@
+"""primfit: represent a 3D point cloud with geometric primitives.
+
+The library infers which members of a large, fixed, discrete set of candidate
+primitives exist, by minimising a *probabilistic chamfer distance* over their existence
+probabilities (see DESIGN.md §2). Everything heavy runs in Rust with the GIL released.
+
+Arrays go in as anything numpy can read (lists, float32, Fortran order, CPU tensors):
+they are converted to C-ordered float64 here. Non-numeric arrays (object, str, bool)
+raise ``TypeError``; wrong shapes, NaN/inf, empty clouds and out-of-range indices raise
+``ValueError``; file problems raise ``OSError``.
+
+Quick start::
+
+    import numpy as np, primfit
+    prim, point, grad = primfit.probabilistic_chamfer(cloud, samples, owner, p, cap=0.25)
+    result = primfit.fit(cloud, types=["square"], size=1.0)
+    result.primitives[0]["type"], result.existence, result.metrics
+
+The optional PyTorch integration lives in :mod:`primfit.torch` (imported on demand).
+"""
+
+from __future__ import annotations
+
+import json
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _primfit
+from ._primfit import __version__
+
+__all__ = [
+    "ChamferProblem",
+    "FitResult",
+    "__version__",
+    "fit",
+    "probabilistic_chamfer",
+]
+
+ArrayLike = npt.ArrayLike
+Limit = int | float | str | None
+
+
+def _numeric(name: str, x: ArrayLike, kinds: str) -> np.ndarray:
+    a = np.asarray(x)
+    if a.dtype.kind not in kinds:
+        raise TypeError(f"{name} must be a numeric array, got dtype {a.dtype}")
+    return a
+
+
+def _floats(name: str, x: ArrayLike, ndim: int) -> np.ndarray:
+    """``x`` as a C-ordered float64 array with ``ndim`` dimensions."""
+    a = _numeric(name, x, "fiu")
+    if a.ndim != ndim:
+        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {a.shape}")
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _points(name: str, x: ArrayLike) -> np.ndarray:
+    """An ``(M, 3)`` float64 array (shape, emptiness and finiteness are checked in Rust)."""
+    return _floats(name, x, 2)
+
+
+def _ints(name: str, x: ArrayLike, ndim: int = 1) -> np.ndarray:
+    """``x`` as a C-ordered int64 array (integer dtypes only: floats are not truncated)."""
+    a = _numeric(name, x, "iu")
+    if a.ndim != ndim:
+        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {a.shape}")
+    if a.dtype.kind == "u" and a.size and a.max() > np.iinfo(np.int64).max:
+        raise ValueError(f"{name} has an index larger than 2**63 - 1")
+    return np.ascontiguousarray(a, dtype=np.int64)
+
+
+class ChamferProblem:
+    """The probabilistic chamfer distance of one cloud against one candidate set.
+
+    The candidates are given by explicit surface samples: ``samples`` (K, 3) with
+    ``owner`` (K,) giving each sample's candidate in ``0..n``. Every candidate needs at
+    least one sample. Coefficients (nearest distances, sorted point entries) are built
+    once here, so repeated evaluations are pure arithmetic.
+
+    Parameters
+    ----------
+    cloud : (J, 3) array
+        The input points.
+    samples : (K, 3) array
+        Candidate surface samples.
+    owner : (K,) int array
+        Candidate index of every sample, in ``0..n``.
+    n : int, optional
+        Number of candidates N (default ``max(owner) + 1``).
+    model : {"existence", "independent"}
+        Point-term model (DESIGN §2).
+    alpha, beta : int, "inf" or None
+        Samples kept per (point, candidate) (``independent`` only) and candidates kept per
+        point. ``None`` or ``"inf"`` keeps all: the exact loss.
+    cap : float
+        ``d_cap`` itself (squared units): the cost of a point no existing candidate explains.
+    weights : (float, float)
+        Weights of the primitive and point terms; gradients are of the weighted total.
+    """
+
+    def __init__(
+        self,
+        cloud: ArrayLike,
+        samples: ArrayLike,
+        owner: ArrayLike,
+        n: int | None = None,
+        *,
+        model: str = "existence",
+        alpha: Limit = None,
+        beta: Limit = None,
+        cap: float = 0.0,
+        weights: tuple[float, float] = (1.0, 1.0),
+    ) -> None:
+        self._inner = _primfit.ChamferProblem(
+            _points("cloud", cloud),
+            _points("samples", samples),
+            _ints("owner", owner),
+            n,
+            model=model,
+            alpha=alpha,
+            beta=beta,
+            cap=float(cap),
+            weights=(float(weights[0]), float(weights[1])),
+        )
+
+    @property
+    def n_candidates(self) -> int:
+        """Number of candidates N."""
+        return self._inner.n_candidates
+
+    @property
+    def n_points(self) -> int:
+        """Number of cloud points J."""
+        return self._inner.n_points
+
+    @property
+    def n_entries(self) -> int:
+        """Number of stored (point, candidate[, sample]) entries of the point term."""
+        return self._inner.n_entries
+
+    @property
+    def weights(self) -> tuple[float, float]:
+        """``(primitive_weight, point_weight)``."""
+        return self._inner.weights
+
+    @property
+    def g(self) -> np.ndarray:
+        """Primitive-term coefficients ``g_i`` (N,): the primitive term is ``g @ p``."""
+        return self._inner.g
+
+    def evaluate(self, p: ArrayLike) -> tuple[float, float, np.ndarray]:
+        """``(primitive_term, point_term, grad)`` at probabilities ``p`` (N,).
+
+        The terms are unweighted; ``grad`` (N,) is the gradient of the weighted total
+        ``w_prim * primitive_term + w_point * point_term``.
+        """
+        return self._inner.evaluate(_floats("p", p, 1))
+
+    def evaluate_batch(self, P: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted totals (B,) and their gradients (B, N) for a batch ``P`` (B, N).
+
+        Rows are evaluated in parallel in Rust.
+        """
+        return self._inner.evaluate_batch(_floats("P", P, 2))
+
+    def __repr__(self) -> str:
+        return repr(self._inner)
+
+
+def probabilistic_chamfer(
+    cloud: ArrayLike,
+    samples: ArrayLike,
+    owner: ArrayLike,
+    p: ArrayLike,
+    *,
+    model: str = "existence",
+    alpha: Limit = None,
+    beta: Limit = None,
+    cap: float = 0.0,
+    weights: tuple[float, float] = (1.0, 1.0),
+) -> tuple[float, float, np.ndarray]:
+    """The probabilistic chamfer distance and its gradient (DESIGN §2), in one call.
+
+    Returns ``(primitive_term, point_term, grad)``; ``N = len(p)`` candidates, owners
+    in ``0..N``. See :class:`ChamferProblem` for the parameters; build one instead when
+    evaluating the same cloud and candidates repeatedly.
+    """
+    p = _floats("p", p, 1)
+    problem = ChamferProblem(
+        cloud, samples, owner, len(p), model=model, alpha=alpha, beta=beta, cap=cap, weights=weights
+    )
+    return problem.evaluate(p)
+
+
+class FitResult:
+    """The outcome of :func:`fit`.
+
+    Attributes
+    ----------
+    primitives : list of dict
+        The chosen primitives as in ``result.json``: ``type``, ``size``, ``pose``
+        (``translation``, ``rotation`` quaternion ``[w, x, y, z]``, ``scale``),
+        ``existence``.
+    existence : (P,) float64 array
+        Continuous existence probability of each chosen primitive.
+    metrics : dict
+        The measures of DESIGN §4 of the fit against its cloud.
+    settings : dict
+        Every setting used, defaults included.
+    """
+
+    def __init__(self, document: str, existence: np.ndarray) -> None:
+        self._document = document
+        doc = json.loads(document)
+        self.primitives: list[dict[str, Any]] = doc["primitives"]
+        self.metrics: dict[str, Any] = doc["metrics"]
+        self.settings: dict[str, Any] = doc["settings"]
+        self.existence: np.ndarray = existence
+
+    def to_json(self) -> str:
+        """The ``result.json`` document (DESIGN §3), as the CLI writes it."""
+        return self._document
+
+    def __len__(self) -> int:
+        return len(self.primitives)
+
+    def __repr__(self) -> str:
+        kinds: dict[str, int] = {}
+        for q in self.primitives:
+            kinds[q["type"]] = kinds.get(q["type"], 0) + 1
+        summary = ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none"
+        return f"FitResult({len(self.primitives)} primitives: {summary})"
+
+
+def fit(
+    cloud: ArrayLike,
+    *,
+    types: Sequence[str] | str | None = None,
+    size: float | None = None,
+    radius: float | None = None,
+    bend: float | None = None,
+    spacing: float | None = None,
+    origin: Sequence[float] | None = None,
+    sample_spacing: float | None = None,
+    model: str = "existence",
+    alpha: Limit = None,
+    beta: Limit = None,
+    cap: float | None = None,
+    weights: tuple[float, float] | None = None,
+    parameterization: str = "box",
+    max_iterations: int = 200,
+    polish: bool = True,
+    mesh_model: tuple[ArrayLike, ArrayLike] | None = None,
+    seed: int = 0,
+    memory_budget: int | None = None,
+) -> FitResult:
+    """Fits primitives to ``cloud`` (J, 3), as ``primfit fit`` does.
+
+    Every option mirrors the CLI flag of the same name; ``None`` derives the value from
+    the cloud (the result's ``settings`` lists what was used).
+
+    Parameters
+    ----------
+    types : list of str or comma-separated str
+        Primitive types from square, disk, cylinder, elbow, sphere, mesh (default square).
+    size, radius, bend, spacing : float
+        Candidate main extent, tube radius, elbow bend radius, lattice step (scene units).
+    origin : (3,) floats
+        A lattice point (default the origin).
+    sample_spacing : float
+        Spacing of candidate surface samples.
+    model : {"existence", "independent"}
+        Point-term model.
+    alpha, beta : int or "inf"
+        Samples per (point, candidate) and candidates per point (defaults 10 and 16).
+    cap : float
+        The distance (not squared) whose square is ``d_cap`` (default: the spacing).
+    weights : (float, float)
+        Weights of the primitive and point terms (default 1, 1).
+    parameterization : {"box", "logit"}
+        Existence parameterisation of L-BFGS.
+    max_iterations : int
+        L-BFGS iterations at most.
+    polish : bool
+        Run the discrete polish after thresholding.
+    mesh_model : (vertices (V, 3), faces (F, 3) int)
+        The triangle mesh of the ``mesh`` type.
+    seed : int
+        Seed for every random choice.
+    memory_budget : int
+        Upper bound on coefficient memory in bytes (default half the machine's memory).
+    """
+    if isinstance(types, str):
+        types = [t.strip() for t in types.split(",") if t.strip()]
+    mesh = None
+    if mesh_model is not None:
+        vertices, faces = mesh_model
+        mesh = (_points("mesh vertices", vertices), _ints("mesh faces", faces, 2))
+    document, existence = _primfit.fit(
+        _points("cloud", cloud),
+        types=None if types is None else list(types),
+        size=size,
+        radius=radius,
+        bend=bend,
+        spacing=spacing,
+        origin=None if origin is None else [float(v) for v in origin],
+        sample_spacing=sample_spacing,
+        model=model,
+        alpha=alpha,
+        beta=beta,
+        cap=cap,
+        weights=None if weights is None else (float(weights[0]), float(weights[1])),
+        parameterization=parameterization,
+        max_iterations=max_iterations,
+        polish=polish,
+        mesh_model=mesh,
+        seed=seed,
+        memory_budget=memory_budget,
+    )
+    return FitResult(document, existence)
