@@ -24,7 +24,10 @@ struct Aabb {
 
 impl Aabb {
     fn empty() -> Self {
-        Aabb { lo: Point3::from([f64::INFINITY; 3]), hi: Point3::from([f64::NEG_INFINITY; 3]) }
+        Aabb {
+            lo: Point3::from([f64::INFINITY; 3]),
+            hi: Point3::from([f64::NEG_INFINITY; 3]),
+        }
     }
 
     fn grow(&mut self, p: &Point3<f64>) {
@@ -34,12 +37,19 @@ impl Aabb {
 
     /// Squared distance from `p` to the box (0 inside).
     fn distance2(&self, p: &Point3<f64>) -> f64 {
-        (0..3).map(|k| (self.lo[k] - p[k]).max(p[k] - self.hi[k]).max(0.0).powi(2)).sum()
+        (0..3)
+            .map(|k| (self.lo[k] - p[k]).max(p[k] - self.hi[k]).max(0.0).powi(2))
+            .sum()
     }
 
     /// The ray parameters where `o + t d` is inside the box.
     fn ray_span(&self, o: &Point3<f64>, d: &Vector3<f64>) -> Option<(f64, f64)> {
-        slab(o.coords.into(), (*d).into(), self.lo.coords.into(), self.hi.coords.into())
+        slab(
+            o.coords.into(),
+            (*d).into(),
+            self.lo.coords.into(),
+            self.hi.coords.into(),
+        )
     }
 }
 
@@ -62,12 +72,21 @@ pub(super) struct TriangleBvh {
 impl TriangleBvh {
     /// Builds the hierarchy over all faces of `mesh` (face indices must be in range).
     pub(super) fn new(mesh: &TriMesh) -> Self {
-        let triangles: Vec<[Point3<f64>; 3]> =
-            mesh.faces.iter().map(|f| f.map(|i| mesh.vertices[i as usize])).collect();
-        let centroids: Vec<Point3<f64>> =
-            triangles.iter().map(|[a, b, c]| Point3::from((a.coords + b.coords + c.coords) / 3.0)).collect();
+        let triangles: Vec<[Point3<f64>; 3]> = mesh
+            .faces
+            .iter()
+            .map(|f| f.map(|i| mesh.vertices[i as usize]))
+            .collect();
+        let centroids: Vec<Point3<f64>> = triangles
+            .iter()
+            .map(|[a, b, c]| Point3::from((a.coords + b.coords + c.coords) / 3.0))
+            .collect();
         let mut order: Vec<u32> = (0..triangles.len() as u32).collect();
-        let mut nodes = vec![Node { bounds: Aabb::empty(), first: 0, count: 0 }];
+        let mut nodes = vec![Node {
+            bounds: Aabb::empty(),
+            first: 0,
+            count: 0,
+        }];
         build(&mut nodes, 0, &mut order, 0, &triangles, &centroids);
         let triangles = order.iter().map(|&i| triangles[i as usize]).collect();
         TriangleBvh { nodes, triangles }
@@ -96,8 +115,13 @@ impl TriangleBvh {
                 }
                 continue;
             }
-            let children = [node.first, node.first + 1].map(|c| (c, self.nodes[c as usize].bounds.distance2(p)));
-            let [near, far] = if children[0].1 <= children[1].1 { children } else { [children[1], children[0]] };
+            let children = [node.first, node.first + 1]
+                .map(|c| (c, self.nodes[c as usize].bounds.distance2(p)));
+            let [near, far] = if children[0].1 <= children[1].1 {
+                children
+            } else {
+                [children[1], children[0]]
+            };
             stack.push(far);
             stack.push(near);
         }
@@ -152,20 +176,41 @@ fn build(
         spread.grow(&centroids[i as usize]);
     }
     if order.len() <= LEAF_SIZE {
-        nodes[index] = Node { bounds, first: offset, count: order.len() as u32 };
+        nodes[index] = Node {
+            bounds,
+            first: offset,
+            count: order.len() as u32,
+        };
         return;
     }
     let extent = spread.hi - spread.lo;
     let axis = extent.iamax();
     let mid = order.len() / 2;
-    order.select_nth_unstable_by(mid, |&a, &b| centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis]));
+    order.select_nth_unstable_by(mid, |&a, &b| {
+        centroids[a as usize][axis].total_cmp(&centroids[b as usize][axis])
+    });
     let first_child = nodes.len();
-    nodes[index] = Node { bounds, first: first_child as u32, count: 0 };
-    let placeholder = Node { bounds: Aabb::empty(), first: 0, count: 0 };
+    nodes[index] = Node {
+        bounds,
+        first: first_child as u32,
+        count: 0,
+    };
+    let placeholder = Node {
+        bounds: Aabb::empty(),
+        first: 0,
+        count: 0,
+    };
     nodes.extend([placeholder, placeholder]);
     let (left, right) = order.split_at_mut(mid);
     build(nodes, first_child, left, offset, triangles, centroids);
-    build(nodes, first_child + 1, right, offset + mid as u32, triangles, centroids);
+    build(
+        nodes,
+        first_child + 1,
+        right,
+        offset + mid as u32,
+        triangles,
+        centroids,
+    );
 }
 
 /// The closest point of triangle `abc` to `p` (Ericson, *Real-Time Collision Detection*,

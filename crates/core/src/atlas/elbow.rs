@@ -43,12 +43,17 @@ pub(super) fn elbow_sample(bend: f64, radius: f64, spacing: f64) -> Vec<Point3<f
     let n_phi = cell_count(TAU * radius, spacing);
     let delta = TAU / n_phi as f64;
     let phis: Vec<f64> = (0..n_phi).map(|j| j as f64 * delta).collect();
-    let band_weights: Vec<f64> =
-        phis.iter().map(|phi| bend * delta + 2.0 * radius * phi.cos() * (delta / 2.0).sin()).collect();
+    let band_weights: Vec<f64> = phis
+        .iter()
+        .map(|phi| bend * delta + 2.0 * radius * phi.cos() * (delta / 2.0).sin())
+        .collect();
     let counts = apportion(&band_weights, sample_count(area, spacing));
     let mut out = Vec::with_capacity(counts.iter().sum());
     for (&phi, &m) in phis.iter().zip(&counts) {
-        out.extend((0..m).map(|k| surface_point(bend, radius, FRAC_PI_2 * (k as f64 + 0.5) / m as f64, phi)));
+        out.extend(
+            (0..m)
+                .map(|k| surface_point(bend, radius, FRAC_PI_2 * (k as f64 + 0.5) / m as f64, phi)),
+        );
     }
     out
 }
@@ -62,13 +67,25 @@ pub(super) fn elbow_sample(bend: f64, radius: f64, spacing: f64) -> Vec<Point3<f
 /// best circle is at ψ = α when α lies on the arc, and otherwise at the nearer end
 /// (the rim circles). The closest point on that circle finishes the job.
 pub(super) fn elbow_closest(bend: f64, radius: f64, p: &Point3<f64>) -> Point3<f64> {
-    let on_circle = |psi: f64| closest_on_circle(p, &Point3::from(e_rho(psi) * bend), &tangent(psi), radius, &e_rho(psi));
+    let on_circle = |psi: f64| {
+        closest_on_circle(
+            p,
+            &Point3::from(e_rho(psi) * bend),
+            &tangent(psi),
+            radius,
+            &e_rho(psi),
+        )
+    };
     let alpha = p.y.atan2(p.x);
     if (0.0..=FRAC_PI_2).contains(&alpha) {
         return on_circle(alpha);
     }
     let (start, end) = (on_circle(0.0), on_circle(FRAC_PI_2));
-    if (p - start).norm_squared() <= (p - end).norm_squared() { start } else { end }
+    if (p - start).norm_squared() <= (p - end).norm_squared() {
+        start
+    } else {
+        end
+    }
 }
 
 /// [`ARC_SEGMENTS`] + 1 rings of [`TUBE_SEGMENTS`] vertices. Rings follow increasing ψ
@@ -101,7 +118,7 @@ pub(super) fn elbow_ray(bend: f64, radius: f64, o: &Point3<f64>, d: &Vector3<f64
     let m = o + u * t0;
     let outer = bend + radius;
     let half_chord2 = outer * outer - m.coords.norm_squared();
-    if !(half_chord2 >= 0.0) {
+    if half_chord2.is_nan() || half_chord2 < 0.0 {
         return None;
     }
     let half_chord = half_chord2.sqrt();

@@ -23,6 +23,8 @@ pub struct MeshShape {
     pub mesh: Arc<TriMesh>,
     /// Acceleration structure over `mesh`'s faces.
     index: Arc<TriangleBvh>,
+    /// The largest vertex distance from the local origin.
+    bounding_radius: f64,
 }
 
 impl std::fmt::Debug for MeshShape {
@@ -46,7 +48,22 @@ impl MeshShape {
         let (source, mesh) = (source.into(), mesh.into());
         check_mesh(&source, &mesh)?;
         let index = Arc::new(TriangleBvh::new(&mesh));
-        Ok(MeshShape { source, mesh, index })
+        let bounding_radius = mesh
+            .vertices
+            .iter()
+            .map(|v| v.coords.norm())
+            .fold(0.0, f64::max);
+        Ok(MeshShape {
+            source,
+            mesh,
+            index,
+            bounding_radius,
+        })
+    }
+
+    /// Radius of a ball about the local origin that contains the mesh (cached).
+    pub fn bounding_radius(&self) -> f64 {
+        self.bounding_radius
     }
 
     /// The closest point of the mesh's surface to `p` (local frame). Exact: the
@@ -73,7 +90,9 @@ impl MeshShape {
         let mut out = Vec::with_capacity(counts.iter().sum());
         for (face, &count) in mesh.faces.iter().zip(&counts) {
             let [a, b, c] = face.map(|i| mesh.vertices[i as usize]);
-            out.extend((out.len()..out.len() + count).map(|i| point_in_triangle(r2(i), &a, &b, &c)));
+            out.extend(
+                (out.len()..out.len() + count).map(|i| point_in_triangle(r2(i), &a, &b, &c)),
+            );
         }
         out
     }
@@ -82,24 +101,46 @@ impl MeshShape {
 /// Maps a point of the unit square into triangle `abc`, area-uniformly: `(u, v)` with
 /// `u + v > 1` is reflected through the square's centre into the lower-left half, which
 /// is the parallelogram-to-triangle fold.
-fn point_in_triangle((u, v): (f64, f64), a: &Point3<f64>, b: &Point3<f64>, c: &Point3<f64>) -> Point3<f64> {
-    let (u, v) = if u + v > 1.0 { (1.0 - u, 1.0 - v) } else { (u, v) };
+fn point_in_triangle(
+    (u, v): (f64, f64),
+    a: &Point3<f64>,
+    b: &Point3<f64>,
+    c: &Point3<f64>,
+) -> Point3<f64> {
+    let (u, v) = if u + v > 1.0 {
+        (1.0 - u, 1.0 - v)
+    } else {
+        (u, v)
+    };
     a + (b - a) * u + (c - a) * v
 }
 
 /// The checks of [`MeshShape::new`].
 fn check_mesh(source: &str, mesh: &TriMesh) -> Result<()> {
-    if let Some(v) = mesh.vertices.iter().position(|v| !v.iter().all(|c| c.is_finite())) {
-        return Err(Error::invalid(format!("mesh {source:?}: vertex {v} is not finite")));
+    if let Some(v) = mesh
+        .vertices
+        .iter()
+        .position(|v| !v.iter().all(|c| c.is_finite()))
+    {
+        return Err(Error::invalid(format!(
+            "mesh {source:?}: vertex {v} is not finite"
+        )));
     }
     let n = mesh.vertices.len();
-    if let Some(f) = mesh.faces.iter().position(|f| f.iter().any(|&i| i as usize >= n)) {
+    if let Some(f) = mesh
+        .faces
+        .iter()
+        .position(|f| f.iter().any(|&i| i as usize >= n))
+    {
         return Err(Error::invalid(format!(
             "mesh {source:?}: face {f} refers to a vertex beyond the {n} vertices"
         )));
     }
-    if !(mesh.area() > 0.0) {
-        return Err(Error::invalid(format!("mesh {source:?} has no faces with area")));
+    let area = mesh.area();
+    if area.is_nan() || area <= 0.0 {
+        return Err(Error::invalid(format!(
+            "mesh {source:?} has no faces with area"
+        )));
     }
     Ok(())
 }

@@ -3,7 +3,10 @@
 //! A [`Shape`] knows its sizes and nothing about where it sits in a scene; a
 //! [`crate::Primitive`] places it with a [`crate::Pose`]. Every shape offers:
 //! deterministic, area-uniform surface samples at a given spacing; the exact
-//! closest point on (and distance to) its surface; a triangle mesh for export.
+//! closest point on (and distance to) its surface; the first hit of a ray; a triangle
+//! mesh for export. A `Mesh` type is built with [`MeshShape::new`] (or
+//! [`Shape::from_mesh`]), which indexes the faces in a bounding-volume hierarchy so that
+//! closest-point and ray queries take microseconds on meshes of 10⁵ faces.
 //!
 //! Local-frame conventions (all lengths in scene units before the pose's scale):
 //!

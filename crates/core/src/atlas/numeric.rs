@@ -14,14 +14,20 @@ const PLASTIC: f64 = 1.324_717_957_244_746;
 /// The number of samples for a surface of `area` at `spacing`: `round(area / spacing²)`,
 /// at least 1.
 pub(super) fn sample_count(area: f64, spacing: f64) -> usize {
-    debug_assert!(spacing.is_finite() && spacing > 0.0, "spacing must be positive and finite");
+    debug_assert!(
+        spacing.is_finite() && spacing > 0.0,
+        "spacing must be positive and finite"
+    );
     ((area / (spacing * spacing)).round() as usize).max(1)
 }
 
 /// The number of cells of width about `spacing` that cover `length`: `round(length / spacing)`,
 /// at least 1.
 pub(super) fn cell_count(length: f64, spacing: f64) -> usize {
-    debug_assert!(spacing.is_finite() && spacing > 0.0, "spacing must be positive and finite");
+    debug_assert!(
+        spacing.is_finite() && spacing > 0.0,
+        "spacing must be positive and finite"
+    );
     ((length / spacing).round() as usize).max(1)
 }
 
@@ -38,10 +44,13 @@ pub(super) fn r2(i: usize) -> (f64, f64) {
 /// broken by index, so the result is deterministic. All zeros if the weights sum to ≤ 0.
 pub(super) fn apportion(weights: &[f64], total: usize) -> Vec<usize> {
     let sum: f64 = weights.iter().sum();
-    if !(sum > 0.0) || weights.is_empty() {
+    if sum.is_nan() || sum <= 0.0 {
         return vec![0; weights.len()];
     }
-    let quotas: Vec<f64> = weights.iter().map(|w| w.max(0.0) / sum * total as f64).collect();
+    let quotas: Vec<f64> = weights
+        .iter()
+        .map(|w| w.max(0.0) / sum * total as f64)
+        .collect();
     let mut parts: Vec<usize> = quotas.iter().map(|q| q.floor() as usize).collect();
     let assigned: usize = parts.iter().sum();
     let mut by_remainder: Vec<usize> = (0..weights.len()).collect();
@@ -58,7 +67,12 @@ pub(super) fn apportion(weights: &[f64], total: usize) -> Vec<usize> {
 /// The parameter interval `[t_in, t_out]` over which the ray `o + t·d` lies inside the
 /// axis-aligned box `[lo, hi]` (slab method), for all real t (no `t ≥ 0` clamp).
 /// `None` when the ray's line misses the box. Axes with `d = 0` are handled exactly.
-pub(super) fn slab<const N: usize>(o: [f64; N], d: [f64; N], lo: [f64; N], hi: [f64; N]) -> Option<(f64, f64)> {
+pub(super) fn slab<const N: usize>(
+    o: [f64; N],
+    d: [f64; N],
+    lo: [f64; N],
+    hi: [f64; N],
+) -> Option<(f64, f64)> {
     let (mut t_in, mut t_out) = (f64::NEG_INFINITY, f64::INFINITY);
     for k in 0..N {
         if d[k] == 0.0 {
@@ -84,7 +98,7 @@ pub(super) fn first_nonnegative(span: Option<(f64, f64)>) -> Option<f64> {
 /// the parameter to the vertex: returns `t0 ± √(−c/a)` for the quadratic `a (t − t0)² + c`.
 /// `None` when there is no real root or `a = 0`.
 pub(super) fn symmetric_roots(t0: f64, a: f64, c: f64) -> Option<[f64; 2]> {
-    if !(a > 0.0) {
+    if a.is_nan() || a <= 0.0 {
         return None;
     }
     let h2 = -c / a;
@@ -112,16 +126,29 @@ pub(super) fn poly_roots_in(c: &[f64], lo: f64, hi: f64) -> Vec<f64> {
         None => return Vec::new(),
     };
     let c = &c[..=degree];
-    if degree == 0 || !(lo <= hi) {
+    if degree == 0 || lo.is_nan() || hi.is_nan() || lo > hi {
         return Vec::new();
     }
     if degree == 1 {
         let t = -c[0] / c[1];
-        return if (lo..=hi).contains(&t) { vec![t] } else { Vec::new() };
+        return if (lo..=hi).contains(&t) {
+            vec![t]
+        } else {
+            Vec::new()
+        };
     }
-    let derivative: Vec<f64> = c.iter().enumerate().skip(1).map(|(i, ci)| i as f64 * ci).collect();
+    let derivative: Vec<f64> = c
+        .iter()
+        .enumerate()
+        .skip(1)
+        .map(|(i, ci)| i as f64 * ci)
+        .collect();
     let m = lo.abs().max(hi.abs());
-    let scale: f64 = c.iter().enumerate().map(|(i, ci)| ci.abs() * m.powi(i as i32)).sum();
+    let scale: f64 = c
+        .iter()
+        .enumerate()
+        .map(|(i, ci)| ci.abs() * m.powi(i as i32))
+        .sum();
     let tangency_tol = 64.0 * f64::EPSILON * scale;
 
     let critical = poly_roots_in(&derivative, lo, hi);

@@ -41,20 +41,27 @@ pub(super) fn disk_mesh(radius: f64) -> TriMesh {
         let theta = std::f64::consts::TAU * j as f64 / DISK_SEGMENTS as f64;
         Point3::new(radius * theta.cos(), radius * theta.sin(), 0.0)
     }));
-    let faces = (0..DISK_SEGMENTS).map(|j| [0, 1 + j, 1 + (j + 1) % DISK_SEGMENTS]).collect();
+    let faces = (0..DISK_SEGMENTS)
+        .map(|j| [0, 1 + j, 1 + (j + 1) % DISK_SEGMENTS])
+        .collect();
     TriMesh { vertices, faces }
 }
 
 /// The first hit with the disk: the plane crossing if it is inside the rim, or, for a
 /// ray lying in the plane z = 0, the first point of the ray inside the disk.
 pub(super) fn disk_ray(radius: f64, o: &Point3<f64>, d: &Vector3<f64>) -> Option<f64> {
-    plane_ray(o, d, |x, y| x.hypot(y) <= radius, |o, d| circle_entry(radius, o, d))
+    plane_ray(
+        o,
+        d,
+        |x, y| x.hypot(y) <= radius,
+        |o, d| circle_entry(radius, o, d),
+    )
 }
 
 /// The first `t ≥ 0` at which the 2-D ray `o + t·d` is inside the circle of `radius`.
 fn circle_entry(radius: f64, o: [f64; 2], d: [f64; 2]) -> Option<f64> {
     let a = d[0] * d[0] + d[1] * d[1];
-    if !(a > 0.0) {
+    if a == 0.0 {
         return (o[0].hypot(o[1]) <= radius).then_some(0.0);
     }
     // Shift to the ray's closest approach to the centre: a (t − t0)² + (ρ0² − R²).
@@ -66,7 +73,10 @@ fn circle_entry(radius: f64, o: [f64; 2], d: [f64; 2]) -> Option<f64> {
 
 /// The square's cell-centre grid: `ceil(side / spacing)` cells per side.
 pub(super) fn square_sample(side: f64, spacing: f64) -> Vec<Point3<f64>> {
-    debug_assert!(spacing.is_finite() && spacing > 0.0, "spacing must be positive and finite");
+    debug_assert!(
+        spacing.is_finite() && spacing > 0.0,
+        "spacing must be positive and finite"
+    );
     let n = ((side / spacing).ceil() as usize).max(1);
     let step = side / n as f64;
     let mut out = Vec::with_capacity(n * n);
@@ -123,7 +133,11 @@ fn plane_ray(
     in_plane: impl Fn([f64; 2], [f64; 2]) -> Option<f64>,
 ) -> Option<f64> {
     if d.z == 0.0 {
-        return if o.z == 0.0 { in_plane([o.x, o.y], [d.x, d.y]) } else { None };
+        return if o.z == 0.0 {
+            in_plane([o.x, o.y], [d.x, d.y])
+        } else {
+            None
+        };
     }
     let t = -o.z / d.z;
     // `+ 0.0` turns a −0 (origin on the plane) into +0.

@@ -134,7 +134,9 @@ impl Shape {
             }
         };
         match self {
-            Shape::Disk { diameter } | Shape::Sphere { diameter } => positive("diameter", *diameter),
+            Shape::Disk { diameter } | Shape::Sphere { diameter } => {
+                positive("diameter", *diameter)
+            }
             Shape::Square { side } => positive("side", *side),
             Shape::Cylinder { length, radius } => {
                 positive("length", *length)?;
@@ -152,7 +154,10 @@ impl Shape {
             }
             Shape::Mesh(m) => {
                 if m.mesh.faces.is_empty() || m.mesh.area() <= 0.0 {
-                    return Err(Error::invalid(format!("mesh {:?} has no faces with area", m.source)));
+                    return Err(Error::invalid(format!(
+                        "mesh {:?} has no faces with area",
+                        m.source
+                    )));
                 }
                 Ok(())
             }
@@ -167,7 +172,9 @@ impl Shape {
             m.insert(k.to_string(), v);
         };
         match self {
-            Shape::Disk { diameter } | Shape::Sphere { diameter } => put("diameter", (*diameter).into()),
+            Shape::Disk { diameter } | Shape::Sphere { diameter } => {
+                put("diameter", (*diameter).into())
+            }
             Shape::Square { side } => put("side", (*side).into()),
             Shape::Cylinder { length, radius } => {
                 put("length", (*length).into());
@@ -212,7 +219,7 @@ impl Shape {
             Shape::Square { side } => side * std::f64::consts::FRAC_1_SQRT_2,
             Shape::Cylinder { length, radius } => (radius * radius + length * length / 4.0).sqrt(),
             Shape::Elbow { bend, radius } => bend + radius,
-            Shape::Mesh(m) => m.mesh.vertices.iter().map(|v| v.coords.norm()).fold(0.0, f64::max),
+            Shape::Mesh(m) => m.bounding_radius(),
         }
     }
 
@@ -278,7 +285,11 @@ impl Shape {
     /// `Some(0.0)`. A zero `dir` hits only if `origin` is on the surface. Rays that merely
     /// graze a curved surface (tangent to within rounding) count as hits.
     pub fn ray_intersect(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<f64> {
-        if !(dir.norm_squared() > 0.0) {
+        let len2 = dir.norm_squared();
+        if len2.is_nan() {
+            return None;
+        }
+        if len2 == 0.0 {
             return (self.distance(origin) == 0.0).then_some(0.0);
         }
         match self {
@@ -292,7 +303,10 @@ impl Shape {
     }
 
     /// A `Mesh` shape from a triangle mesh (see [`MeshShape::new`] for the checks).
-    pub fn from_mesh(source: impl Into<String>, mesh: impl Into<std::sync::Arc<TriMesh>>) -> Result<Shape> {
+    pub fn from_mesh(
+        source: impl Into<String>,
+        mesh: impl Into<std::sync::Arc<TriMesh>>,
+    ) -> Result<Shape> {
         MeshShape::new(source, mesh).map(Shape::Mesh)
     }
 }

@@ -20,7 +20,11 @@ pub(super) fn sphere_sample(radius: f64, spacing: f64) -> Vec<Point3<f64>> {
             let z = 1.0 - (2.0 * i as f64 + 1.0) / n as f64;
             let rho = (1.0 - z * z).max(0.0).sqrt();
             let phi = i as f64 * GOLDEN_ANGLE;
-            Point3::new(radius * rho * phi.cos(), radius * rho * phi.sin(), radius * z)
+            Point3::new(
+                radius * rho * phi.cos(),
+                radius * rho * phi.sin(),
+                radius * z,
+            )
         })
         .collect()
 }

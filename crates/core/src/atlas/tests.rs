@@ -20,7 +20,9 @@ use super::{MeshShape, Shape, ShapeKind, TriMesh};
 /// A box `[-a, a] × [-b, b] × [-c, c]`, each face a grid with its own resolution so that
 /// triangle sizes differ a lot between faces. Outward, counter-clockwise faces.
 fn box_mesh(a: f64, b: f64, c: f64) -> TriMesh {
-    let sides: [([f64; 3], [f64; 3], [f64; 3], u32, u32); 6] = [
+    // (corner, first edge, second edge, cells along the first, cells along the second)
+    type Side = ([f64; 3], [f64; 3], [f64; 3], u32, u32);
+    let sides: [Side; 6] = [
         ([a, -b, -c], [0.0, 2.0 * b, 0.0], [0.0, 0.0, 2.0 * c], 1, 1),
         ([-a, -b, -c], [0.0, 0.0, 2.0 * c], [0.0, 2.0 * b, 0.0], 3, 2),
         ([-a, b, -c], [0.0, 0.0, 2.0 * c], [2.0 * a, 0.0, 0.0], 1, 5),
@@ -34,7 +36,8 @@ fn box_mesh(a: f64, b: f64, c: f64) -> TriMesh {
         let mut side = TriMesh::default();
         for j in 0..=nv {
             for i in 0..=nu {
-                side.vertices.push(origin + u * (i as f64 / nu as f64) + v * (j as f64 / nv as f64));
+                side.vertices
+                    .push(origin + u * (i as f64 / nu as f64) + v * (j as f64 / nv as f64));
             }
         }
         let at = |i: u32, j: u32| j * (nu + 1) + i;
@@ -111,7 +114,9 @@ fn icosphere(radius: f64, levels: u32) -> TriMesh {
             })
             .collect();
     }
-    vertices.iter_mut().for_each(|v| *v = Point3::from(v.coords * radius));
+    vertices
+        .iter_mut()
+        .for_each(|v| *v = Point3::from(v.coords * radius));
     TriMesh { vertices, faces }
 }
 
@@ -124,14 +129,22 @@ fn all_shapes() -> Vec<Shape> {
     let shapes = vec![
         Shape::Disk { diameter: 2.0 },
         Shape::Square { side: 1.5 },
-        Shape::Cylinder { length: 2.0, radius: 0.5 },
-        Shape::Elbow { bend: 1.0, radius: 0.4 },
+        Shape::Cylinder {
+            length: 2.0,
+            radius: 0.5,
+        },
+        Shape::Elbow {
+            bend: 1.0,
+            radius: 0.4,
+        },
         Shape::Sphere { diameter: 2.0 },
         box_shape(),
     ];
     let kinds: Vec<ShapeKind> = shapes.iter().map(Shape::kind).collect();
     assert_eq!(kinds, ShapeKind::ALL);
-    shapes.iter().for_each(|s| s.validate().expect("fixture is valid"));
+    shapes
+        .iter()
+        .for_each(|s| s.validate().expect("fixture is valid"));
     shapes
 }
 
@@ -140,7 +153,11 @@ fn rng(seed: u64) -> ChaCha8Rng {
 }
 
 fn random_point(rng: &mut ChaCha8Rng, half: f64) -> Point3<f64> {
-    Point3::new(rng.random_range(-half..half), rng.random_range(-half..half), rng.random_range(-half..half))
+    Point3::new(
+        rng.random_range(-half..half),
+        rng.random_range(-half..half),
+        rng.random_range(-half..half),
+    )
 }
 
 // ---------------------------------------------------------------------------------------
@@ -153,8 +170,12 @@ fn residual(shape: &Shape, p: &Point3<f64>) -> f64 {
     let rho = p.x.hypot(p.y);
     match shape {
         Shape::Disk { diameter } => p.z.abs() + (rho - diameter / 2.0).max(0.0),
-        Shape::Square { side } => p.z.abs() + (p.x.abs() - side / 2.0).max(0.0) + (p.y.abs() - side / 2.0).max(0.0),
-        Shape::Cylinder { length, radius } => (rho - radius).abs() + (p.z.abs() - length / 2.0).max(0.0),
+        Shape::Square { side } => {
+            p.z.abs() + (p.x.abs() - side / 2.0).max(0.0) + (p.y.abs() - side / 2.0).max(0.0)
+        }
+        Shape::Cylinder { length, radius } => {
+            (rho - radius).abs() + (p.z.abs() - length / 2.0).max(0.0)
+        }
         Shape::Elbow { bend, radius } => {
             ((rho - bend).hypot(p.z) - radius).abs() + (-p.x).max(0.0) + (-p.y).max(0.0)
         }
@@ -174,7 +195,10 @@ fn mesh_residual(mesh: &TriMesh, p: &Point3<f64>) -> f64 {
         if area2 == 0.0 {
             continue;
         }
-        let (l1, l2) = ((c - b).cross(&(p - b)).dot(&n) / area2, (a - c).cross(&(p - c)).dot(&n) / area2);
+        let (l1, l2) = (
+            (c - b).cross(&(p - b)).dot(&n) / area2,
+            (a - c).cross(&(p - c)).dot(&n) / area2,
+        );
         let l3 = 1.0 - l1 - l2;
         if l1 >= -1e-9 && l2 >= -1e-9 && l3 >= -1e-9 {
             best = best.min((p - a).dot(&n).abs() / area2.sqrt());
@@ -200,10 +224,24 @@ fn samples_lie_on_the_surface() {
     for shape in all_shapes() {
         for spacing in [0.5, 0.05] {
             let samples = shape.sample_surface(spacing);
-            let worst = samples.iter().map(|p| residual(&shape, p)).fold(0.0, f64::max);
-            assert!(worst < 1e-9, "{}: sample off the surface by {worst}", shape.kind());
-            let worst = samples.iter().map(|p| shape.distance(p)).fold(0.0, f64::max);
-            assert!(worst < 1e-9, "{}: distance() of a sample is {worst}", shape.kind());
+            let worst = samples
+                .iter()
+                .map(|p| residual(&shape, p))
+                .fold(0.0, f64::max);
+            assert!(
+                worst < 1e-9,
+                "{}: sample off the surface by {worst}",
+                shape.kind()
+            );
+            let worst = samples
+                .iter()
+                .map(|p| shape.distance(p))
+                .fold(0.0, f64::max);
+            assert!(
+                worst < 1e-9,
+                "{}: distance() of a sample is {worst}",
+                shape.kind()
+            );
         }
     }
 }
@@ -245,7 +283,10 @@ fn sampling_is_deterministic() {
 /// Asserts that the counts of samples in regions are proportional to the regions' areas
 /// (relative error of each share at most `tol`).
 fn assert_proportional(what: &str, counts: &[usize], areas: &[f64], tol: f64) {
-    let (n, total_area) = (counts.iter().sum::<usize>() as f64, areas.iter().sum::<f64>());
+    let (n, total_area) = (
+        counts.iter().sum::<usize>() as f64,
+        areas.iter().sum::<f64>(),
+    );
     for (k, (&c, &a)) in counts.iter().zip(areas).enumerate() {
         let (share, expected) = (c as f64 / n, a / total_area);
         assert!(
@@ -256,9 +297,17 @@ fn assert_proportional(what: &str, counts: &[usize], areas: &[f64], tol: f64) {
 }
 
 /// Counts samples of `shape` at `spacing` per region (`region` returns the region index).
-fn region_counts(shape: &Shape, spacing: f64, regions: usize, region: impl Fn(&Point3<f64>) -> usize) -> Vec<usize> {
+fn region_counts(
+    shape: &Shape,
+    spacing: f64,
+    regions: usize,
+    region: impl Fn(&Point3<f64>) -> usize,
+) -> Vec<usize> {
     let mut counts = vec![0; regions];
-    shape.sample_surface(spacing).iter().for_each(|p| counts[region(p)] += 1);
+    shape
+        .sample_surface(spacing)
+        .iter()
+        .for_each(|p| counts[region(p)] += 1);
     counts
 }
 
@@ -266,7 +315,9 @@ fn region_counts(shape: &Shape, spacing: f64, regions: usize, region: impl Fn(&P
 fn disk_samples_are_area_uniform() {
     // The disk of radius R/√2 and the ring outside it have equal areas; so do the halves.
     let shape = Shape::Disk { diameter: 2.0 };
-    let rings = region_counts(&shape, 0.02, 2, |p| usize::from(p.x.hypot(p.y) > FRAC_1_SQRT_2));
+    let rings = region_counts(&shape, 0.02, 2, |p| {
+        usize::from(p.x.hypot(p.y) > FRAC_1_SQRT_2)
+    });
     assert_proportional("disk inner/outer", &rings, &[1.0, 1.0], 0.02);
     let halves = region_counts(&shape, 0.02, 2, |p| usize::from(p.x > 0.0));
     assert_proportional("disk halves", &halves, &[1.0, 1.0], 0.02);
@@ -277,15 +328,22 @@ fn square_samples_are_area_uniform() {
     // The centred square of side s/√2 holds half the area.
     let shape = Shape::Square { side: 1.5 };
     let inner = 0.75 * FRAC_1_SQRT_2;
-    let counts = region_counts(&shape, 0.01, 2, |p| usize::from(p.x.abs().max(p.y.abs()) > inner));
+    let counts = region_counts(&shape, 0.01, 2, |p| {
+        usize::from(p.x.abs().max(p.y.abs()) > inner)
+    });
     assert_proportional("square inner/outer", &counts, &[1.0, 1.0], 0.03);
 }
 
 #[test]
 fn cylinder_samples_are_area_uniform() {
     // Quadrants of (upper/lower half) × (x > 0 / x < 0) have equal areas.
-    let shape = Shape::Cylinder { length: 2.0, radius: 0.5 };
-    let counts = region_counts(&shape, 0.02, 4, |p| usize::from(p.z > 0.0) * 2 + usize::from(p.x > 0.0));
+    let shape = Shape::Cylinder {
+        length: 2.0,
+        radius: 0.5,
+    };
+    let counts = region_counts(&shape, 0.02, 4, |p| {
+        usize::from(p.z > 0.0) * 2 + usize::from(p.x > 0.0)
+    });
     assert_proportional("cylinder quadrants", &counts, &[1.0; 4], 0.02);
 }
 
@@ -311,7 +369,9 @@ fn elbow_samples_follow_area_inner_vs_outer() {
 fn sphere_samples_are_area_uniform_in_z_bands() {
     // Archimedes: bands of equal height have equal area.
     let shape = Shape::Sphere { diameter: 2.0 };
-    let bands = region_counts(&shape, 0.02, 5, |p| (((p.z + 1.0) / 2.0 * 5.0) as usize).min(4));
+    let bands = region_counts(&shape, 0.02, 5, |p| {
+        (((p.z + 1.0) / 2.0 * 5.0) as usize).min(4)
+    });
     assert_proportional("sphere z bands", &bands, &[1.0; 5], 0.01);
     let halves = region_counts(&shape, 0.02, 2, |p| usize::from(p.x > 0.0));
     assert_proportional("sphere x halves", &halves, &[1.0, 1.0], 0.02);
@@ -324,7 +384,9 @@ fn mesh_samples_follow_face_areas() {
     let shape = Shape::from_mesh("box", box_mesh(a, b, c)).unwrap();
     let side = |p: &Point3<f64>| {
         let scaled = [p.x / a, p.y / b, p.z / c];
-        let axis = (0..3).max_by(|&i, &j| scaled[i].abs().total_cmp(&scaled[j].abs())).unwrap();
+        let axis = (0..3)
+            .max_by(|&i, &j| scaled[i].abs().total_cmp(&scaled[j].abs()))
+            .unwrap();
         2 * axis + usize::from(scaled[axis] > 0.0)
     };
     let counts = region_counts(&shape, 0.02, 6, side);
@@ -360,10 +422,25 @@ fn closest_point_matches_dense_brute_force() {
         for q in query_points(&shape, 7, 150) {
             let c = shape.closest_point(&q);
             let exact = (q - c).norm();
-            assert!(residual(&shape, &c) < 1e-9, "{}: closest point {c} of {q} is off the surface", shape.kind());
-            assert!((shape.distance(&q) - exact).abs() <= 1e-15 * (1.0 + exact), "{}", shape.kind());
-            let brute = dense.iter().map(|s| (q - s).norm()).fold(f64::INFINITY, f64::min);
-            assert!(brute >= exact - 1e-12, "{}: a sample at {brute} beats the exact {exact} for {q}", shape.kind());
+            assert!(
+                residual(&shape, &c) < 1e-9,
+                "{}: closest point {c} of {q} is off the surface",
+                shape.kind()
+            );
+            assert!(
+                (shape.distance(&q) - exact).abs() <= 1e-15 * (1.0 + exact),
+                "{}",
+                shape.kind()
+            );
+            let brute = dense
+                .iter()
+                .map(|s| (q - s).norm())
+                .fold(f64::INFINITY, f64::min);
+            assert!(
+                brute >= exact - 1e-12,
+                "{}: a sample at {brute} beats the exact {exact} for {q}",
+                shape.kind()
+            );
             assert!(
                 brute <= exact + dense_spacing,
                 "{}: the exact distance {exact} is too small (dense samples say {brute}) for {q}",
@@ -378,30 +455,69 @@ fn closest_point_in_known_configurations() {
     let close = |a: f64, b: f64| (a - b).abs() < 1e-12;
     let (length, radius) = (2.0, 0.5);
     let cyl = Shape::Cylinder { length, radius };
-    assert!(close(cyl.distance(&Point3::new(0.0, 0.0, 0.3)), radius), "point on the axis");
-    assert!(close(cyl.distance(&Point3::new(0.0, 0.0, 2.0)), (radius * radius + 1.0f64).sqrt()), "axis beyond the rim");
-    assert!(close(cyl.distance(&Point3::new(2.0, 0.0, 1.5)), 1.5f64.hypot(0.5)), "off the rim");
+    assert!(
+        close(cyl.distance(&Point3::new(0.0, 0.0, 0.3)), radius),
+        "point on the axis"
+    );
+    assert!(
+        close(
+            cyl.distance(&Point3::new(0.0, 0.0, 2.0)),
+            (radius * radius + 1.0f64).sqrt()
+        ),
+        "axis beyond the rim"
+    );
+    assert!(
+        close(cyl.distance(&Point3::new(2.0, 0.0, 1.5)), 1.5f64.hypot(0.5)),
+        "off the rim"
+    );
 
     let (bend, r) = (1.0, 0.4);
     let elbow = Shape::Elbow { bend, radius: r };
     for z in [0.0, 0.5, -2.0] {
         let expected = bend.hypot(z) - r; // every tube circle is equally far from the z axis
-        assert!(close(elbow.distance(&Point3::new(0.0, 0.0, z)), expected), "z axis at {z}");
+        assert!(
+            close(elbow.distance(&Point3::new(0.0, 0.0, z)), expected),
+            "z axis at {z}"
+        );
     }
     let on_centre_line = Point3::new(bend * 0.3f64.cos(), bend * 0.3f64.sin(), 0.0);
-    assert!(close(elbow.distance(&on_centre_line), r), "on the centre line");
+    assert!(
+        close(elbow.distance(&on_centre_line), r),
+        "on the centre line"
+    );
     // Beyond the ψ = 0 end, straight below the end circle's centre: distance to the rim.
-    assert!(close(elbow.distance(&Point3::new(bend, -1.0, 0.0)), 1.0f64.hypot(r)), "past the start rim");
+    assert!(
+        close(
+            elbow.distance(&Point3::new(bend, -1.0, 0.0)),
+            1.0f64.hypot(r)
+        ),
+        "past the start rim"
+    );
     // The missing three quarters of the torus are not part of the surface: from the far
     // side (−B − r, 0, 0) the nearest point is the inner point (0, B − r, 0) of the ψ = π/2 rim.
     let far_side = elbow.closest_point(&Point3::new(-bend - r, 0.0, 0.0));
-    assert!((far_side - Point3::new(0.0, bend - r, 0.0)).norm() < 1e-12, "opposite side: {far_side}");
+    assert!(
+        (far_side - Point3::new(0.0, bend - r, 0.0)).norm() < 1e-12,
+        "opposite side: {far_side}"
+    );
 
     let sphere = Shape::Sphere { diameter: 2.0 };
-    assert!(close(sphere.distance(&Point3::origin()), 1.0), "sphere centre");
+    assert!(
+        close(sphere.distance(&Point3::origin()), 1.0),
+        "sphere centre"
+    );
     let disk = Shape::Disk { diameter: 2.0 };
-    assert!(close(disk.distance(&Point3::new(3.0, 0.0, 4.0)), 2.0f64.hypot(4.0)), "above beyond the rim");
-    assert!(close(disk.distance(&Point3::new(0.3, -0.2, -0.7)), 0.7), "below the disk");
+    assert!(
+        close(
+            disk.distance(&Point3::new(3.0, 0.0, 4.0)),
+            2.0f64.hypot(4.0)
+        ),
+        "above beyond the rim"
+    );
+    assert!(
+        close(disk.distance(&Point3::new(0.3, -0.2, -0.7)), 0.7),
+        "below the disk"
+    );
 }
 
 #[test]
@@ -411,7 +527,10 @@ fn mesh_closest_point_matches_brute_force_over_faces() {
         for q in query_points(&shape, seed, 500) {
             let exact = shape.distance(&q);
             let brute = mesh_brute_distance(&mesh, &q);
-            assert!((exact - brute).abs() <= 1e-12, "{q}: index says {exact}, brute force {brute}");
+            assert!(
+                (exact - brute).abs() <= 1e-12,
+                "{q}: index says {exact}, brute force {brute}"
+            );
             assert!(mesh_residual(&mesh, &shape.closest_point(&q)) < 1e-9);
         }
     }
@@ -419,7 +538,11 @@ fn mesh_closest_point_matches_brute_force_over_faces() {
 
 #[test]
 fn closest_on_triangle_matches_dense_sampling() {
-    let tri = [Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.2, 0.0), Point3::new(0.3, 0.9, 0.4)];
+    let tri = [
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(1.0, 0.2, 0.0),
+        Point3::new(0.3, 0.9, 0.4),
+    ];
     let n = 400;
     let mut dense = Vec::new();
     for i in 0..=n {
@@ -432,11 +555,21 @@ fn closest_on_triangle_matches_dense_sampling() {
     for _ in 0..200 {
         let q = random_point(&mut r, 2.0);
         let exact = (closest_on_triangle(&q, &tri) - q).norm();
-        let brute = dense.iter().map(|s| (q - s).norm()).fold(f64::INFINITY, f64::min);
-        assert!(brute >= exact - 1e-12 && brute <= exact + 2.0 / n as f64, "{q}: {exact} vs {brute}");
+        let brute = dense
+            .iter()
+            .map(|s| (q - s).norm())
+            .fold(f64::INFINITY, f64::min);
+        assert!(
+            brute >= exact - 1e-12 && brute <= exact + 2.0 / n as f64,
+            "{q}: {exact} vs {brute}"
+        );
     }
     // A degenerate (collinear) triangle acts as a segment.
-    let flat = [Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0), Point3::new(2.0, 0.0, 0.0)];
+    let flat = [
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(1.0, 0.0, 0.0),
+        Point3::new(2.0, 0.0, 0.0),
+    ];
     let c = closest_on_triangle(&Point3::new(1.5, 1.0, 0.0), &flat);
     assert!((c - Point3::new(1.5, 0.0, 0.0)).norm() < 1e-15);
 }
@@ -454,7 +587,11 @@ fn mesh_index_answers_a_large_mesh_in_microseconds() {
         assert!((d - mesh_brute_distance(&mesh, q)).abs() <= 1e-12);
     }
     // Brute force takes milliseconds per query here; the index, a few microseconds.
-    assert!(per_query < 200e-6, "closest-point query took {:.1} µs", per_query * 1e6);
+    assert!(
+        per_query < 200e-6,
+        "closest-point query took {:.1} µs",
+        per_query * 1e6
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -481,20 +618,39 @@ fn triangulation_is_close_to_the_surface_and_faces_outward() {
         let kind = shape.kind();
         let size = shape.bounding_radius();
         assert!(!mesh.faces.is_empty(), "{kind}");
-        assert!(mesh.faces.iter().flatten().all(|&i| (i as usize) < mesh.vertices.len()), "{kind}");
-        let worst = mesh.vertices.iter().map(|v| residual(&shape, v)).fold(0.0, f64::max);
+        assert!(
+            mesh.faces
+                .iter()
+                .flatten()
+                .all(|&i| (i as usize) < mesh.vertices.len()),
+            "{kind}"
+        );
+        let worst = mesh
+            .vertices
+            .iter()
+            .map(|v| residual(&shape, v))
+            .fold(0.0, f64::max);
         assert!(worst < 1e-9, "{kind}: vertex off the surface by {worst}");
         for f in &mesh.faces {
             let [a, b, c] = f.map(|i| mesh.vertices[i as usize]);
             let centroid = Point3::from((a.coords + b.coords + c.coords) / 3.0);
             let deviation = shape.distance(&centroid);
-            assert!(deviation < 0.01 * size, "{kind}: face centroid {deviation} off the surface");
+            assert!(
+                deviation < 0.01 * size,
+                "{kind}: face centroid {deviation} off the surface"
+            );
             let normal = (b - a).cross(&(c - a));
             assert!(normal.norm() > 0.0, "{kind}: degenerate face");
-            assert!(normal.dot(&outward(&shape, &centroid)) > 0.0, "{kind}: face {f:?} points inward");
+            assert!(
+                normal.dot(&outward(&shape, &centroid)) > 0.0,
+                "{kind}: face {f:?} points inward"
+            );
         }
         let ratio = mesh.area() / shape.area();
-        assert!((ratio - 1.0).abs() < 0.02, "{kind}: mesh area is {ratio} of the surface's");
+        assert!(
+            (ratio - 1.0).abs() < 0.02,
+            "{kind}: mesh area is {ratio} of the surface's"
+        );
     }
 }
 
@@ -551,25 +707,45 @@ fn ray_intersect_agrees_with_sphere_tracing() {
             let origin = if k % 4 == 0 {
                 random_point(&mut rng, r) // often inside the bounding ball, even inside the surface
             } else {
-                Point3::from(Vector3::from([0.0; 3]).map(|_| rng.random_range(-1.0..1.0)).normalize() * 2.5 * r)
+                Point3::from(
+                    Vector3::from([0.0; 3])
+                        .map(|_| rng.random_range(-1.0..1.0))
+                        .normalize()
+                        * 2.5
+                        * r,
+                )
             };
-            let target = targets[rng.random_range(0..targets.len())] + Vector3::from([0.0; 3]).map(|_| rng.random_range(-0.2..0.2));
+            let target = targets[rng.random_range(0..targets.len())]
+                + Vector3::from([0.0; 3]).map(|_| rng.random_range(-0.2..0.2));
             let dir = (target - origin) * rng.random_range(0.1..10.0);
             let got = shape.ray_intersect(&origin, &dir);
             match (sphere_trace(&shape, &origin, &dir), got) {
                 (Trace::Hit(tb), Some(t)) => {
                     hits += 1;
                     let p = origin + dir * t;
-                    assert!(shape.distance(&p) < 1e-9, "{kind}: hit point {p} is off the surface");
-                    assert!(((t - tb) * dir.norm()).abs() < 1e-7, "{kind}: first hit at {t}, tracing says {tb}");
+                    assert!(
+                        shape.distance(&p) < 1e-9,
+                        "{kind}: hit point {p} is off the surface"
+                    );
+                    assert!(
+                        ((t - tb) * dir.norm()).abs() < 1e-7,
+                        "{kind}: first hit at {t}, tracing says {tb}"
+                    );
                 }
                 (Trace::Miss, None) => misses += 1,
                 (Trace::Undecided, _) => undecided += 1,
-                (Trace::Hit(tb), None) => panic!("{kind}: ray {origin} + t {dir} hits at {tb} but got None"),
-                (Trace::Miss, Some(t)) => panic!("{kind}: ray {origin} + t {dir} misses but got {t}"),
+                (Trace::Hit(tb), None) => {
+                    panic!("{kind}: ray {origin} + t {dir} hits at {tb} but got None")
+                }
+                (Trace::Miss, Some(t)) => {
+                    panic!("{kind}: ray {origin} + t {dir} misses but got {t}")
+                }
             }
         }
-        assert!(hits > 100 && misses > 20 && undecided < 5, "{kind}: {hits} hits, {misses} misses, {undecided} undecided");
+        assert!(
+            hits > 100 && misses > 20 && undecided < 5,
+            "{kind}: {hits} hits, {misses} misses, {undecided} undecided"
+        );
     }
 }
 
@@ -578,56 +754,153 @@ fn rays_that_miss_return_none() {
     let down = Vector3::new(0.0, 0.0, -1.0);
     let above = Point3::new(0.0, 0.0, 5.0);
     // Down the axis: through the tube, and through the torus' hole.
-    assert_eq!(Shape::Cylinder { length: 2.0, radius: 0.5 }.ray_intersect(&above, &down), None);
-    assert_eq!(Shape::Elbow { bend: 1.0, radius: 0.4 }.ray_intersect(&above, &down), None);
+    assert_eq!(
+        Shape::Cylinder {
+            length: 2.0,
+            radius: 0.5
+        }
+        .ray_intersect(&above, &down),
+        None
+    );
+    assert_eq!(
+        Shape::Elbow {
+            bend: 1.0,
+            radius: 0.4
+        }
+        .ray_intersect(&above, &down),
+        None
+    );
     // Through the three missing quarters of the torus (x = −B, from y = −5 to +5).
-    let elbow = Shape::Elbow { bend: 1.0, radius: 0.4 };
-    assert_eq!(elbow.ray_intersect(&Point3::new(-1.0, -5.0, 0.0), &Vector3::y()), None);
+    let elbow = Shape::Elbow {
+        bend: 1.0,
+        radius: 0.4,
+    };
+    assert_eq!(
+        elbow.ray_intersect(&Point3::new(-1.0, -5.0, 0.0), &Vector3::y()),
+        None
+    );
     // …while the same ray shifted to x = +B enters the full torus at y = −√0.96 (outside
     // the quarter), passes through the open ψ = 0 end and leaves through the outer wall at
     // y = +√0.96, where √(B² + y²) = B + r.
     let t = elbow.ray_intersect(&Point3::new(1.0, -5.0, 0.0), &Vector3::y());
-    assert!(t.is_some_and(|t| (t - (5.0 + 0.96f64.sqrt())).abs() < 1e-12), "{t:?}");
+    assert!(
+        t.is_some_and(|t| (t - (5.0 + 0.96f64.sqrt())).abs() < 1e-12),
+        "{t:?}"
+    );
     // Pointing away, and parallel beside.
     for shape in all_shapes() {
         let kind = shape.kind();
         let far = Point3::new(0.0, 0.0, 3.0 * shape.bounding_radius());
-        assert_eq!(shape.ray_intersect(&far, &Vector3::z()), None, "{kind}: pointing away");
-        assert_eq!(shape.ray_intersect(&far, &Vector3::x()), None, "{kind}: passing above");
+        assert_eq!(
+            shape.ray_intersect(&far, &Vector3::z()),
+            None,
+            "{kind}: pointing away"
+        );
+        assert_eq!(
+            shape.ray_intersect(&far, &Vector3::x()),
+            None,
+            "{kind}: passing above"
+        );
     }
     // Parallel to a flat shape, just above it.
-    assert_eq!(Shape::Disk { diameter: 2.0 }.ray_intersect(&Point3::new(-5.0, 0.0, 1e-9), &Vector3::x()), None);
-    assert_eq!(Shape::Square { side: 1.0 }.ray_intersect(&Point3::new(-5.0, 0.0, 1e-9), &Vector3::x()), None);
+    assert_eq!(
+        Shape::Disk { diameter: 2.0 }.ray_intersect(&Point3::new(-5.0, 0.0, 1e-9), &Vector3::x()),
+        None
+    );
+    assert_eq!(
+        Shape::Square { side: 1.0 }.ray_intersect(&Point3::new(-5.0, 0.0, 1e-9), &Vector3::x()),
+        None
+    );
 }
 
 #[test]
 fn ray_intersect_in_known_configurations() {
     let close = |got: Option<f64>, want: f64| got.is_some_and(|t| (t - want).abs() < 1e-12);
     let sphere = Shape::Sphere { diameter: 2.0 };
-    assert!(close(sphere.ray_intersect(&Point3::new(0.0, 0.0, -5.0), &(Vector3::z() * 2.0)), 2.0), "t in units of dir");
-    assert!(close(sphere.ray_intersect(&Point3::origin(), &Vector3::x()), 1.0), "from inside");
-    assert!(close(sphere.ray_intersect(&Point3::new(1.0, 0.0, 0.0), &Vector3::x()), 0.0), "origin on the surface");
+    assert!(
+        close(
+            sphere.ray_intersect(&Point3::new(0.0, 0.0, -5.0), &(Vector3::z() * 2.0)),
+            2.0
+        ),
+        "t in units of dir"
+    );
+    assert!(
+        close(sphere.ray_intersect(&Point3::origin(), &Vector3::x()), 1.0),
+        "from inside"
+    );
+    assert!(
+        close(
+            sphere.ray_intersect(&Point3::new(1.0, 0.0, 0.0), &Vector3::x()),
+            0.0
+        ),
+        "origin on the surface"
+    );
     // The elbow entered from below at its centre line: first the lower wall.
-    let elbow = Shape::Elbow { bend: 1.0, radius: 0.4 };
+    let elbow = Shape::Elbow {
+        bend: 1.0,
+        radius: 0.4,
+    };
     let (c, s) = (0.5f64.cos(), 0.5f64.sin());
-    assert!(close(elbow.ray_intersect(&Point3::new(c, s, -2.0), &Vector3::z()), 1.6), "lower wall");
+    assert!(
+        close(
+            elbow.ray_intersect(&Point3::new(c, s, -2.0), &Vector3::z()),
+            1.6
+        ),
+        "lower wall"
+    );
     // From the start of the centre line along its tangent: inside the tube until the
     // centre line bends away and the ray leaves through the outer wall, √(B² + y²) = B + r.
     let t = elbow.ray_intersect(&Point3::new(1.0, 0.0, 0.0), &Vector3::y());
-    assert!(close(t, 0.96f64.sqrt()), "exit through the outer wall: {t:?}");
+    assert!(
+        close(t, 0.96f64.sqrt()),
+        "exit through the outer wall: {t:?}"
+    );
     // Disk and square: in-plane rays and oblique ones.
     let disk = Shape::Disk { diameter: 2.0 };
-    assert!(close(disk.ray_intersect(&Point3::new(-3.0, 0.0, 0.0), &Vector3::x()), 2.0), "in the disk's plane");
-    assert!(close(disk.ray_intersect(&Point3::new(0.5, 0.0, 2.0), &Vector3::new(0.0, 0.0, -4.0)), 0.5));
+    assert!(
+        close(
+            disk.ray_intersect(&Point3::new(-3.0, 0.0, 0.0), &Vector3::x()),
+            2.0
+        ),
+        "in the disk's plane"
+    );
+    assert!(close(
+        disk.ray_intersect(&Point3::new(0.5, 0.0, 2.0), &Vector3::new(0.0, 0.0, -4.0)),
+        0.5
+    ));
     let square = Shape::Square { side: 1.0 };
-    assert!(close(square.ray_intersect(&Point3::new(0.0, -2.0, 0.0), &Vector3::y()), 1.5), "in the square's plane");
+    assert!(
+        close(
+            square.ray_intersect(&Point3::new(0.0, -2.0, 0.0), &Vector3::y()),
+            1.5
+        ),
+        "in the square's plane"
+    );
     // Cylinder: along the wall, and from inside.
-    let cyl = Shape::Cylinder { length: 2.0, radius: 0.5 };
-    assert!(close(cyl.ray_intersect(&Point3::new(0.5, 0.0, -3.0), &Vector3::z()), 2.0), "along the wall");
-    assert!(close(cyl.ray_intersect(&Point3::origin(), &Vector3::x()), 0.5), "from the axis");
+    let cyl = Shape::Cylinder {
+        length: 2.0,
+        radius: 0.5,
+    };
+    assert!(
+        close(
+            cyl.ray_intersect(&Point3::new(0.5, 0.0, -3.0), &Vector3::z()),
+            2.0
+        ),
+        "along the wall"
+    );
+    assert!(
+        close(cyl.ray_intersect(&Point3::origin(), &Vector3::x()), 0.5),
+        "from the axis"
+    );
     // Zero direction: a hit only on the surface.
-    assert_eq!(cyl.ray_intersect(&Point3::new(0.5, 0.0, 0.0), &Vector3::zeros()), Some(0.0));
-    assert_eq!(cyl.ray_intersect(&Point3::origin(), &Vector3::zeros()), None);
+    assert_eq!(
+        cyl.ray_intersect(&Point3::new(0.5, 0.0, 0.0), &Vector3::zeros()),
+        Some(0.0)
+    );
+    assert_eq!(
+        cyl.ray_intersect(&Point3::origin(), &Vector3::zeros()),
+        None
+    );
 }
 
 // ---------------------------------------------------------------------------------------
@@ -637,20 +910,34 @@ fn ray_intersect_in_known_configurations() {
 #[test]
 fn mesh_shape_from_a_procedural_box_needs_no_files() {
     let shape = box_shape();
-    let Shape::Mesh(m) = &shape else { unreachable!() };
+    let Shape::Mesh(m) = &shape else {
+        unreachable!()
+    };
     assert_eq!(m.source, "procedural:box");
     assert!((shape.area() - 8.0 * (0.5 + 0.25 + 0.125)).abs() < 1e-12);
-    assert_eq!(shape.sizes_json(), serde_json::json!({ "source": "procedural:box" }));
+    assert_eq!(
+        shape.sizes_json(),
+        serde_json::json!({ "source": "procedural:box" })
+    );
     assert!(format!("{m:?}").contains("faces"));
 }
 
 #[test]
 fn mesh_shape_new_rejects_broken_meshes() {
-    let tri = |vertices: Vec<Point3<f64>>, faces: Vec<[u32; 3]>| MeshShape::new("t", TriMesh { vertices, faces });
-    let v = vec![Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 1.0, 0.0)];
+    let tri = |vertices: Vec<Point3<f64>>, faces: Vec<[u32; 3]>| {
+        MeshShape::new("t", TriMesh { vertices, faces })
+    };
+    let v = vec![
+        Point3::new(0.0, 0.0, 0.0),
+        Point3::new(1.0, 0.0, 0.0),
+        Point3::new(0.0, 1.0, 0.0),
+    ];
     assert!(tri(v.clone(), vec![[0, 1, 2]]).is_ok());
     assert!(tri(v.clone(), vec![]).is_err(), "no faces");
-    assert!(tri(v.clone(), vec![[0, 1, 3]]).is_err(), "index out of range");
+    assert!(
+        tri(v.clone(), vec![[0, 1, 3]]).is_err(),
+        "index out of range"
+    );
     assert!(tri(v.clone(), vec![[0, 1, 1]]).is_err(), "no area");
     let mut bad = v.clone();
     bad[1].x = f64::NAN;
@@ -671,13 +958,22 @@ fn poly_roots_finds_simple_double_and_no_roots() {
     let roots = poly_roots_in(&[-3.0, 9.5, -7.0, -0.5, 1.0], -10.0, 10.0);
     let want = [-3.0, 0.5, 1.0, 2.0];
     assert_eq!(roots.len(), 4, "{roots:?}");
-    roots.iter().zip(want).for_each(|(r, w)| assert!((r - w).abs() < 1e-12, "{roots:?}"));
+    roots
+        .iter()
+        .zip(want)
+        .for_each(|(r, w)| assert!((r - w).abs() < 1e-12, "{roots:?}"));
     // (t − 1)² (t² + 1) = t⁴ − 2t³ + 2t² − 2t + 1: one double root, no sign change.
     let roots = poly_roots_in(&[1.0, -2.0, 2.0, -2.0, 1.0], -10.0, 10.0);
-    assert!(roots.len() == 1 && (roots[0] - 1.0).abs() < 1e-7, "{roots:?}");
+    assert!(
+        roots.len() == 1 && (roots[0] - 1.0).abs() < 1e-7,
+        "{roots:?}"
+    );
     // t⁴ + 1 has no real roots; the interval restricts roots.
     assert!(poly_roots_in(&[1.0, 0.0, 0.0, 0.0, 1.0], -10.0, 10.0).is_empty());
-    assert_eq!(poly_roots_in(&[-3.0, 9.5, -7.0, -0.5, 1.0], 0.75, 1.5).len(), 1);
+    assert_eq!(
+        poly_roots_in(&[-3.0, 9.5, -7.0, -0.5, 1.0], 0.75, 1.5).len(),
+        1
+    );
 }
 
 #[test]
@@ -692,8 +988,15 @@ fn apportion_sums_to_total_and_follows_weights() {
 #[test]
 fn elbow_quarter_is_where_the_conventions_say() {
     // From (B, 0, 0) with tangent +y to (0, B, 0) with tangent −x.
-    let elbow = Shape::Elbow { bend: 2.0, radius: 0.5 };
-    for p in [Point3::new(2.5, 0.0, 0.0), Point3::new(0.0, 2.5, 0.0), Point3::new(2.0, 0.0, 0.5)] {
+    let elbow = Shape::Elbow {
+        bend: 2.0,
+        radius: 0.5,
+    };
+    for p in [
+        Point3::new(2.5, 0.0, 0.0),
+        Point3::new(0.0, 2.5, 0.0),
+        Point3::new(2.0, 0.0, 0.5),
+    ] {
         assert!(elbow.distance(&p) < 1e-15, "{p}");
     }
     assert!(elbow.distance(&Point3::new(-2.5, 0.0, 0.0)) > 1.0);

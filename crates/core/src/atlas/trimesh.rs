@@ -29,7 +29,8 @@ impl TriMesh {
         let base = self.vertices.len() as u32;
         let start = self.faces.len();
         self.vertices.extend_from_slice(&other.vertices);
-        self.faces.extend(other.faces.iter().map(|f| f.map(|i| i + base)));
+        self.faces
+            .extend(other.faces.iter().map(|f| f.map(|i| i + base)));
         start..self.faces.len()
     }
 

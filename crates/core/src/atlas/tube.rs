@@ -33,7 +33,11 @@ pub(super) fn cylinder_sample(length: f64, radius: f64, spacing: f64) -> Vec<Poi
 pub(super) fn cylinder_closest(length: f64, radius: f64, p: &Point3<f64>) -> Point3<f64> {
     let h = length / 2.0;
     let rho = p.x.hypot(p.y);
-    let (cos, sin) = if rho > 0.0 { (p.x / rho, p.y / rho) } else { (1.0, 0.0) };
+    let (cos, sin) = if rho > 0.0 {
+        (p.x / rho, p.y / rho)
+    } else {
+        (1.0, 0.0)
+    };
     Point3::new(radius * cos, radius * sin, p.z.clamp(-h, h))
 }
 
@@ -53,15 +57,26 @@ pub(super) fn cylinder_mesh(length: f64, radius: f64) -> TriMesh {
 /// Intersects the infinite cylinder x² + y² = r² (a quadratic in t, solved from the ray's
 /// closest approach to the axis to avoid cancellation), keeping hits with |z| ≤ L/2.
 /// A ray parallel to the axis hits only if it runs along the tube wall.
-pub(super) fn cylinder_ray(length: f64, radius: f64, o: &Point3<f64>, d: &Vector3<f64>) -> Option<f64> {
+pub(super) fn cylinder_ray(
+    length: f64,
+    radius: f64,
+    o: &Point3<f64>,
+    d: &Vector3<f64>,
+) -> Option<f64> {
     let h = length / 2.0;
     let a = d.x * d.x + d.y * d.y;
-    if !(a > 0.0) {
+    if a == 0.0 {
         let on_wall = (o.x.hypot(o.y) - radius).abs() <= 1e-12 * radius;
-        return if on_wall { first_nonnegative(slab([o.z], [d.z], [-h], [h])) } else { None };
+        return if on_wall {
+            first_nonnegative(slab([o.z], [d.z], [-h], [h]))
+        } else {
+            None
+        };
     }
     let t0 = -(o.x * d.x + o.y * d.y) / a;
     let (mx, my) = (o.x + t0 * d.x, o.y + t0 * d.y);
     let roots = symmetric_roots(t0, a, mx * mx + my * my - radius * radius)?;
-    roots.into_iter().find(|&t| t >= 0.0 && (o.z + t * d.z).abs() <= h)
+    roots
+        .into_iter()
+        .find(|&t| t >= 0.0 && (o.z + t * d.z).abs() <= h)
 }

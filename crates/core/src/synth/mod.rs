@@ -1,0 +1,40 @@
+//! Synthetic scenes with ground truth (DESIGN §1 `synth`).
+//!
+//! Every generator takes a params struct (with [`Default`] and a `seed`), draws from a
+//! seeded [`rand_chacha::ChaCha8Rng`] (same seed ⇒ bit-identical scene), and returns a [`Scene`]:
+//! the point cloud, the true primitives, and the [`LatticeHint`] on which the truth
+//! lives, so a test can build the matching candidate set.
+//!
+//! Noise model, applied in this order (all lengths in scene units, metres by default):
+//!
+//! 1. points are drawn **area-uniformly at random** on the true surfaces
+//!    ([`Density`]: points per unit area or a total count);
+//! 2. **drift**: every surface piece gets one random offset `~ N(0, drift² I)` added to
+//!    all of its points (the truth does not move);
+//! 3. **jitter**: every point gets an independent offset `~ N(0, jitter² I)`;
+//! 4. **misalignment** ([`Misalignment`]): one rigid motion applied to the cloud *and*
+//!    the truth, recorded in [`Scene::misalignment`]; the lattice hint stays where it
+//!    was, so a misaligned truth is (deliberately) off the lattice.
+//!
+//! Lattice convention (the fitter's candidate lattice): translations are
+//! `origin + spacing · (i, j, k)` with integers `i, j, k`; flat patches have their normal
+//! and cylinders their axis along ±x/y/z (local z mapped onto an axis); an elbow's
+//! rotation maps its local axes onto signed coordinate axes (12 orientations: plane
+//! normal ∈ {x, y, z} × 4 quadrants) with its torus centre on the lattice.
+
+mod common;
+mod hallway;
+mod nine;
+mod pipe;
+mod registration;
+mod six;
+
+pub use common::{
+    Density, LatticeHint, Misalignment, Noise, Scene, axis_rotation, elbow_rotation,
+    sample_shape_local,
+};
+pub use hallway::{HallwayParams, hallway};
+pub use nine::{NineCylinderParams, nine_cylinders, nine_cylinders_candidates};
+pub use pipe::{PipeParams, pipe};
+pub use registration::{RegistrationParams, asymmetric_object, registration};
+pub use six::{SixInARow, SixInARowParams, SixVariant, six_in_a_row};

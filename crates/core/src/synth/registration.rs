@@ -1,0 +1,221 @@
+//! Registration scenes (thesis §6.3.3): points from a randomly posed mesh plus uniform
+//! outliers; and a small procedural asymmetric test object.
+
+use std::collections::HashMap;
+use std::sync::Arc;
+
+use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
+use rand::{RngExt, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+
+use super::common::{
+    Density, LatticeHint, Noise, Piece, Scene, non_negative, positive, random_unit, sample_pieces,
+};
+use crate::atlas::{MeshShape, Shape, TriMesh};
+use crate::{Error, PointCloud, Pose, Primitive, Result};
+
+/// Parameters of [`registration`]. Lengths in the mesh's units.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegistrationParams {
+    /// Number of inlier points N drawn on the posed mesh (thesis: 100).
+    pub inliers: usize,
+    /// Number of uniform outliers M (thesis: 1900, i.e. 95 %).
+    pub outliers: usize,
+    /// Largest translation per axis: the translation is uniform in `[-t, t]³`
+    /// (0 = rotation only, as in thesis figure 6-8).
+    pub translation: f64,
+    /// Scale range `(lo, hi)`, drawn uniformly; `None` = scale 1.
+    pub scale: Option<(f64, f64)>,
+    /// Half-side of the outlier cube, in units of the posed mesh's bounding radius; the
+    /// cube is centred on the posed mesh's origin.
+    pub outlier_box: f64,
+    /// Per-point jitter on the inliers (drift is ignored: there is one object).
+    pub noise: Noise,
+    /// RNG seed.
+    pub seed: u64,
+}
+
+impl Default for RegistrationParams {
+    fn default() -> Self {
+        RegistrationParams {
+            inliers: 100,
+            outliers: 1900,
+            translation: 0.0,
+            scale: None,
+            outlier_box: 1.0,
+            noise: Noise::default(),
+            seed: 0,
+        }
+    }
+}
+
+/// A uniformly random rotation (quaternion from a uniform point on S³).
+fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
+    let axis = Unit::new_normalize(random_unit(rng));
+    // Haar measure: angle density ∝ sin²(θ/2) on [0, π]; sample by rejection.
+    let angle = loop {
+        let a = std::f64::consts::PI * rng.random::<f64>();
+        if rng.random::<f64>() <= (a / 2.0).sin().powi(2) {
+            break a;
+        }
+    };
+    UnitQuaternion::from_axis_angle(&axis, angle)
+}
+
+/// `inliers` points from the surface of `mesh` under a random pose, followed by
+/// `outliers` points uniform in a cube around it. The cloud lists the inliers first.
+/// The truth is the one posed mesh primitive; the lattice hint is informational
+/// (spacing = the posed bounding radius, origin 0).
+pub fn registration(mesh: &MeshShape, params: &RegistrationParams) -> Result<Scene> {
+    let shape = Shape::Mesh(mesh.clone());
+    shape.validate()?;
+    non_negative("translation", params.translation)?;
+    positive("outlier box", params.outlier_box)?;
+    params.noise.validate()?;
+    if let Some((lo, hi)) = params.scale {
+        positive("scale lower bound", lo)?;
+        positive("scale upper bound", hi)?;
+        if lo > hi {
+            return Err(Error::invalid(format!("scale range ({lo}, {hi}) is empty")));
+        }
+    }
+    let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
+    let rotation = random_rotation(&mut rng);
+    let t = params.translation;
+    let translation = Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * t);
+    let scale = params
+        .scale
+        .map_or(1.0, |(lo, hi)| lo + (hi - lo) * rng.random::<f64>());
+    let truth = Primitive::new(
+        shape,
+        Pose {
+            rotation,
+            translation,
+            scale,
+        },
+    );
+    let noise = Noise {
+        jitter: params.noise.jitter,
+        drift: 0.0,
+    };
+    let mut points = sample_pieces(
+        &[Piece::Prim(truth.clone())],
+        Density::Total(params.inliers),
+        noise,
+        &mut rng,
+    )?;
+    let half = params.outlier_box * truth.bounding_radius();
+    points.extend((0..params.outliers).map(|_| {
+        Point3::from(
+            translation + Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * half),
+        )
+    }));
+    Ok(Scene {
+        cloud: PointCloud::from_points(points),
+        lattice: LatticeHint {
+            spacing: truth.bounding_radius(),
+            origin: Point3::origin(),
+            shapes: vec![truth.shape.clone()],
+        },
+        truth: vec![truth],
+        misalignment: Pose::identity(),
+    })
+}
+
+/// A closed, lumpy, asymmetric test body (320 triangles, 162 vertices, about 1 unit
+/// across): a twice-subdivided icosphere, stretched to (1.0, 0.7, 0.5) semi-axes and
+/// pushed out by three Gaussian bumps of different heights at non-symmetric directions,
+/// so no rotation other than the identity maps it onto itself. Star-shaped about the
+/// origin (hence not self-intersecting); faces are counter-clockwise seen from outside.
+pub fn asymmetric_object() -> MeshShape {
+    let (mut vertices, mut faces) = icosahedron();
+    for _ in 0..2 {
+        faces = subdivide(&mut vertices, &faces);
+    }
+    let bumps = [
+        (Vector3::new(1.0, 0.3, 0.2).normalize(), 0.35),
+        (Vector3::new(-0.2, 1.0, 0.6).normalize(), 0.2),
+        (Vector3::new(0.3, -0.5, -1.0).normalize(), 0.12),
+    ];
+    for v in &mut vertices {
+        let u = v.coords.normalize();
+        let r = 1.0
+            + bumps
+                .iter()
+                .map(|(d, h)| h * (-(u - d).norm_squared() / 0.3).exp())
+                .sum::<f64>();
+        let s = u * r;
+        *v = Point3::new(s.x, 0.7 * s.y, 0.5 * s.z) * 0.5;
+    }
+    // A closed icosphere with finite vertices always has faces of positive area.
+    MeshShape::new("asymmetric_object", Arc::new(TriMesh { vertices, faces }))
+        .expect("procedural mesh is valid")
+}
+
+/// The unit icosahedron (outward counter-clockwise faces).
+fn icosahedron() -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
+    let t = (1.0 + 5f64.sqrt()) / 2.0;
+    let raw = [
+        (-1.0, t, 0.0),
+        (1.0, t, 0.0),
+        (-1.0, -t, 0.0),
+        (1.0, -t, 0.0),
+        (0.0, -1.0, t),
+        (0.0, 1.0, t),
+        (0.0, -1.0, -t),
+        (0.0, 1.0, -t),
+        (t, 0.0, -1.0),
+        (t, 0.0, 1.0),
+        (-t, 0.0, -1.0),
+        (-t, 0.0, 1.0),
+    ];
+    let vertices = raw
+        .iter()
+        .map(|&(x, y, z)| Point3::from(Vector3::new(x, y, z).normalize()))
+        .collect();
+    let faces = vec![
+        [0, 11, 5],
+        [0, 5, 1],
+        [0, 1, 7],
+        [0, 7, 10],
+        [0, 10, 11],
+        [1, 5, 9],
+        [5, 11, 4],
+        [11, 10, 2],
+        [10, 7, 6],
+        [7, 1, 8],
+        [3, 9, 4],
+        [3, 4, 2],
+        [3, 2, 6],
+        [3, 6, 8],
+        [3, 8, 9],
+        [4, 9, 5],
+        [2, 4, 11],
+        [6, 2, 10],
+        [8, 6, 7],
+        [9, 8, 1],
+    ];
+    (vertices, faces)
+}
+
+/// Splits every triangle into four, projecting new vertices onto the unit sphere.
+fn subdivide(vertices: &mut Vec<Point3<f64>>, faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
+    let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
+    let mut midpoint = |a: u32, b: u32, vertices: &mut Vec<Point3<f64>>| {
+        *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
+            let m = (vertices[a as usize].coords + vertices[b as usize].coords).normalize();
+            vertices.push(Point3::from(m));
+            (vertices.len() - 1) as u32
+        })
+    };
+    let mut out = Vec::with_capacity(faces.len() * 4);
+    for &[a, b, c] in faces {
+        let (ab, bc, ca) = (
+            midpoint(a, b, vertices),
+            midpoint(b, c, vertices),
+            midpoint(c, a, vertices),
+        );
+        out.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
+    }
+    out
+}
