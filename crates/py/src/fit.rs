@@ -4,6 +4,7 @@ use numpy::{IntoPyArray, PyArray1, PyReadonlyArray2};
 use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::chamfer::PointModel;
 use primfit_core::fit::{FitOptions, fit as core_fit};
+use primfit_core::metrics::{self, MetricsOptions};
 use primfit_core::na::Point3;
 use primfit_core::progress::Silent;
 use primfit_core::solve::{Parameterization, SolverOptions};
@@ -100,9 +101,12 @@ pub fn fit<'py>(
 }
 
 /// The measures of DESIGN §4 for a fit against its cloud.
-fn measure(
-    _cloud: &PointCloud,
-    _result: &primfit_core::fit::FitResult,
-) -> Result<serde_json::Value> {
-    Ok(serde_json::json!({}))
+fn measure(cloud: &PointCloud, result: &primfit_core::fit::FitResult) -> Result<serde_json::Value> {
+    let m = metrics::evaluate(
+        &cloud.points,
+        &result.primitives,
+        None,
+        &MetricsOptions::default(),
+    )?;
+    Ok(m.to_json())
 }

@@ -10,6 +10,7 @@ mod chamfer;
 mod convert;
 mod fit;
 mod pool;
+mod synth;
 
 use pyo3::prelude::*;
 
@@ -20,6 +21,10 @@ mod _primfit {
     use super::chamfer::ChamferProblem;
     #[pymodule_export]
     use super::fit::fit;
+    #[pymodule_export]
+    use super::synth::{
+        synth_hallway, synth_nine_cylinders, synth_pipe, synth_registration, synth_six_in_a_row,
+    };
 
     /// The library version.
     #[allow(non_upper_case_globals)]

@@ -37,6 +37,7 @@ __all__ = [
     "__version__",
     "fit",
     "probabilistic_chamfer",
+    "synth",
 ]
 
 ArrayLike = npt.ArrayLike
@@ -322,3 +323,6 @@ def fit(
         memory_budget=memory_budget,
     )
     return FitResult(document, existence)
+
+
+from . import synth  # noqa: E402  (uses the helpers above)

@@ -61,3 +61,28 @@ def fit(
     seed: int = 0,
     memory_budget: int | None = None,
 ) -> tuple[str, _F64]: ...
+
+_Scene = tuple[_F64, str]
+
+def synth_hallway(
+    *, length: float = 10.0, width: float = 2.0, height: float = 2.5, side: float = 1.0, ceiling: bool = False,
+    density: float | None = None, points: int | None = None, jitter: float = 0.01, drift: float = 0.0,
+    offset: float = 0.0, angle: float = 0.0, seed: int = 0,
+) -> _Scene: ...
+def synth_pipe(
+    *, segments: int = 4, max_run: int = 3, segment_length: float = 1.0, bend: float | None = None,
+    radius: float | None = None, density: float | None = None, points: int | None = None, jitter: float = 0.005,
+    drift: float = 0.0, offset: float = 0.0, angle: float = 0.0, seed: int = 0,
+) -> _Scene: ...
+def synth_nine_cylinders(
+    *, mask: int = 511, pitch: float = 1.0, radius: float = 0.2, height: float = 1.0, density: float | None = None,
+    points: int | None = None, jitter: float = 0.01, drift: float = 0.01, offset: float = 0.0, seed: int = 0,
+) -> _Scene: ...
+def synth_six_in_a_row(
+    *, variant: str = "squares", first: float = 7.0, step: float = 1.0, true_index: int = 3, size: float = 1.0,
+    points: int = 500, jitter: float = 0.01, seed: int = 0,
+) -> _Scene: ...
+def synth_registration(
+    *, mesh: tuple[_F64, _I64] | None = None, inliers: int = 100, outliers: int = 1900, translation: float = 0.0,
+    scale: tuple[float, float] | None = None, outlier_box: float = 1.0, jitter: float = 0.0, seed: int = 0,
+) -> _Scene: ...
