@@ -48,7 +48,13 @@ pub trait CandidateGeometry: Sync {
     fn nearest_sample(&self, i: usize, y: &Point3<f64>) -> (u32, f64);
     /// The `k` samples of candidate `i` nearest to `y` (all when `k` is `None`), sorted by
     /// (squared distance, sample index), written into `out` (cleared first).
-    fn nearest_samples(&self, i: usize, y: &Point3<f64>, k: Option<usize>, out: &mut Vec<(u32, f64)>);
+    fn nearest_samples(
+        &self,
+        i: usize,
+        y: &Point3<f64>,
+        k: Option<usize>,
+        out: &mut Vec<(u32, f64)>,
+    );
 }
 
 /// How the point term models which samples exist (DESIGN §2).
@@ -77,7 +83,9 @@ impl PointModel {
         match s {
             "existence" => Ok(PointModel::Existence),
             "independent" => Ok(PointModel::Independent),
-            other => Err(Error::invalid(format!("unknown point model {other:?} (existence|independent)"))),
+            other => Err(Error::invalid(format!(
+                "unknown point model {other:?} (existence|independent)"
+            ))),
         }
     }
 }
@@ -116,14 +124,24 @@ impl ChamferOptions {
     /// Checks ranges (α, β ≥ 1; cap, weights finite and ≥ 0).
     pub fn validate(&self) -> Result<()> {
         if self.alpha == Some(0) || self.beta == Some(0) {
-            return Err(Error::invalid("alpha and beta must be at least 1 (or unlimited)"));
+            return Err(Error::invalid(
+                "alpha and beta must be at least 1 (or unlimited)",
+            ));
         }
         if !(self.cap.is_finite() && self.cap >= 0.0) {
-            return Err(Error::invalid(format!("cap must be finite and ≥ 0, got {}", self.cap)));
+            return Err(Error::invalid(format!(
+                "cap must be finite and ≥ 0, got {}",
+                self.cap
+            )));
         }
-        for (n, w) in [("primitive", self.primitive_weight), ("point", self.point_weight)] {
+        for (n, w) in [
+            ("primitive", self.primitive_weight),
+            ("point", self.point_weight),
+        ] {
             if !(w.is_finite() && w >= 0.0) {
-                return Err(Error::invalid(format!("{n} weight must be finite and ≥ 0, got {w}")));
+                return Err(Error::invalid(format!(
+                    "{n} weight must be finite and ≥ 0, got {w}"
+                )));
             }
         }
         Ok(())
@@ -164,7 +182,10 @@ impl Coefficients {
         options.validate()?;
         let n = geometry.len();
         if n > u32::MAX as usize {
-            return Err(Error::TooLarge(format!("{n} candidates (at most {})", u32::MAX)));
+            return Err(Error::TooLarge(format!(
+                "{n} candidates (at most {})",
+                u32::MAX
+            )));
         }
         let cloud_index = PointIndex::new(cloud);
         progress.start("primitive term", n as u64);
@@ -204,7 +225,14 @@ impl Coefficients {
             cand.extend_from_slice(&c);
             dist.extend_from_slice(&d);
         }
-        Ok(Coefficients { g, offsets, cand, dist, options: options.clone(), max_row })
+        Ok(Coefficients {
+            g,
+            offsets,
+            cand,
+            dist,
+            options: options.clone(),
+            max_row,
+        })
     }
 
     /// Number of candidates N.
@@ -245,7 +273,10 @@ fn primitive_coefficients(
         .into_par_iter()
         .map_init(Vec::new, |buf, i| {
             geometry.scene_samples(i, buf);
-            let s = buf.iter().map(|x| cloud_index.nearest(x).map_or(f64::INFINITY, |r| r.1)).sum();
+            let s = buf
+                .iter()
+                .map(|x| cloud_index.nearest(x).map_or(f64::INFINITY, |r| r.1))
+                .sum();
             progress.advance(1);
             s
         })
@@ -261,11 +292,17 @@ struct CentreIndex {
 
 impl CentreIndex {
     fn new(geometry: &impl CandidateGeometry) -> Self {
-        let balls: Vec<(Point3<f64>, f64)> = (0..geometry.len()).map(|i| geometry.bounding_ball(i)).collect();
+        let balls: Vec<(Point3<f64>, f64)> = (0..geometry.len())
+            .map(|i| geometry.bounding_ball(i))
+            .collect();
         let centres: Vec<Point3<f64>> = balls.iter().map(|b| b.0).collect();
         let max_radius = balls.iter().map(|b| b.1).fold(0.0, f64::max);
         let extent = crate::cloud::bounds_of(&centres).map_or(0.0, |(lo, hi)| (hi - lo).norm());
-        CentreIndex { index: PointIndex::new(&centres), max_radius, extent }
+        CentreIndex {
+            index: PointIndex::new(&centres),
+            max_radius,
+            extent,
+        }
     }
 }
 
@@ -281,7 +318,14 @@ struct RowBuilder<'a, G: CandidateGeometry> {
 
 impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
     fn new(geometry: &'a G, centres: &'a CentreIndex, options: &'a ChamferOptions) -> Self {
-        RowBuilder { geometry, centres, options, near: Vec::new(), samples: Vec::new(), entries: Vec::new() }
+        RowBuilder {
+            geometry,
+            centres,
+            options,
+            near: Vec::new(),
+            samples: Vec::new(),
+            entries: Vec::new(),
+        }
     }
 
     /// Appends the entries of point `y` to `cand`/`dist`.
@@ -290,18 +334,26 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
         self.entries.clear();
         match self.options.model {
             PointModel::Existence => {
-                self.entries.extend(self.near.iter().map(|&(i, d)| (d, i, 0)));
+                self.entries
+                    .extend(self.near.iter().map(|&(i, d)| (d, i, 0)));
             }
             PointModel::Independent => {
                 for &(i, _) in &self.near {
-                    self.geometry.nearest_samples(i as usize, y, self.options.alpha, &mut self.samples);
-                    self.entries.extend(self.samples.iter().map(|&(s, d)| (d, i, s)));
+                    self.geometry.nearest_samples(
+                        i as usize,
+                        y,
+                        self.options.alpha,
+                        &mut self.samples,
+                    );
+                    self.entries
+                        .extend(self.samples.iter().map(|&(s, d)| (d, i, s)));
                 }
             }
         }
         // (distance, candidate, sample): ties never change the value (DESIGN §2) but a
         // total order keeps the arrays deterministic.
-        self.entries.sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
+        self.entries
+            .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)).then(a.2.cmp(&b.2)));
         for &(d, i, _) in &self.entries {
             cand.push(i);
             dist.push(d);
@@ -315,7 +367,8 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
         let beta = self.options.beta.unwrap_or(usize::MAX);
         self.near.clear();
         if beta >= n {
-            self.near.extend((0..n).map(|i| (i as u32, self.geometry.nearest_sample(i, y).1)));
+            self.near
+                .extend((0..n).map(|i| (i as u32, self.geometry.nearest_sample(i, y).1)));
         } else {
             self.expanding_search(y, beta);
         }
@@ -336,7 +389,8 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             let reach = rho + c.max_radius;
             self.near.clear();
             for (i, _) in c.index.within(y, reach * reach) {
-                self.near.push((i, self.geometry.nearest_sample(i as usize, y).1));
+                self.near
+                    .push((i, self.geometry.nearest_sample(i as usize, y).1));
             }
             let inside = self.near.iter().filter(|r| r.1 <= rho * rho).count();
             let everything = self.near.len() == self.geometry.len();
@@ -345,7 +399,8 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
                     // Past the whole extent: every candidate is within reach.
                     self.near.clear();
                     let n = self.geometry.len();
-                    self.near.extend((0..n).map(|i| (i as u32, self.geometry.nearest_sample(i, y).1)));
+                    self.near
+                        .extend((0..n).map(|i| (i as u32, self.geometry.nearest_sample(i, y).1)));
                 }
                 return;
             }
@@ -386,9 +441,14 @@ impl<'c> Evaluator<'c> {
     pub fn new(coeffs: &'c Coefficients) -> Self {
         let j = coeffs.points();
         let n = coeffs.candidates().max(1);
-        let count = j.div_ceil(2048).clamp(1, 64).min((MAX_ACCUMULATOR_CELLS / n).max(1));
+        let count = j
+            .div_ceil(2048)
+            .clamp(1, 64)
+            .min((MAX_ACCUMULATOR_CELLS / n).max(1));
         let per = j.div_ceil(count).max(1);
-        let blocks: Vec<Range<usize>> = (0..count).map(|b| (b * per).min(j)..((b + 1) * per).min(j)).collect();
+        let blocks: Vec<Range<usize>> = (0..count)
+            .map(|b| (b * per).min(j)..((b + 1) * per).min(j))
+            .collect();
         Evaluator {
             coeffs,
             block_grad: vec![vec![0.0; coeffs.candidates()]; blocks.len()],
@@ -437,7 +497,11 @@ impl<'c> Evaluator<'c> {
                 *o = wp * gi + wq * s;
             }
         });
-        LossValue { primitive, point, total: wp * primitive + wq * point }
+        LossValue {
+            primitive,
+            point,
+            total: wp * primitive + wq * point,
+        }
     }
 
     /// The loss at a binary scene (`exists[i]` = candidate i exists): the exact binary
@@ -454,7 +518,14 @@ impl<'c> Evaluator<'c> {
 /// Backward pass: `ERD_K = d_cap`, `ERD_{k-1} = q_k d_k + (1 − q_k) ERD_k` (thesis eq. 6.6);
 /// forward pass: `∂E_y/∂q_k = Π_{l<k}(1 − q_l) · (d_k − ERD_k)`, summed per owner.
 #[inline]
-fn point_expectation(cand: &[u32], dist: &[f64], p: &[f64], cap: f64, erd: &mut [f64], grad: &mut [f64]) -> f64 {
+fn point_expectation(
+    cand: &[u32],
+    dist: &[f64],
+    p: &[f64],
+    cap: f64,
+    erd: &mut [f64],
+    grad: &mut [f64],
+) -> f64 {
     let k = cand.len();
     let mut r = cap;
     for m in (0..k).rev() {
@@ -489,12 +560,18 @@ impl SampleSets {
     /// Groups `samples` by `owner` (each in `0..n`). Every candidate needs ≥ 1 sample.
     pub fn new(samples: &[Point3<f64>], owner: &[usize], n: usize) -> Result<Self> {
         if samples.len() != owner.len() {
-            return Err(Error::Shape(format!("{} samples but {} owners", samples.len(), owner.len())));
+            return Err(Error::Shape(format!(
+                "{} samples but {} owners",
+                samples.len(),
+                owner.len()
+            )));
         }
         let mut counts = vec![0usize; n];
         for (k, &o) in owner.iter().enumerate() {
             if o >= n {
-                return Err(Error::invalid(format!("owner[{k}] = {o} is not a candidate index (N = {n})")));
+                return Err(Error::invalid(format!(
+                    "owner[{k}] = {o} is not a candidate index (N = {n})"
+                )));
             }
             counts[o] += 1;
         }
@@ -510,16 +587,29 @@ impl SampleSets {
             ranges.push(start..start + c);
             start += c;
         }
-        let indexes = ranges.par_iter().map(|r| PointIndex::new(&sorted[r.clone()])).collect();
+        let indexes = ranges
+            .par_iter()
+            .map(|r| PointIndex::new(&sorted[r.clone()]))
+            .collect();
         let balls = ranges
             .iter()
             .map(|r| {
                 let s = &sorted[r.clone()];
-                let centre = Point3::from(s.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>() / s.len() as f64);
-                (centre, s.iter().map(|p| (p - centre).norm()).fold(0.0, f64::max))
+                let centre = Point3::from(
+                    s.iter().map(|p| p.coords).sum::<nalgebra::Vector3<f64>>() / s.len() as f64,
+                );
+                (
+                    centre,
+                    s.iter().map(|p| (p - centre).norm()).fold(0.0, f64::max),
+                )
             })
             .collect();
-        Ok(SampleSets { samples: sorted, ranges, indexes, balls })
+        Ok(SampleSets {
+            samples: sorted,
+            ranges,
+            indexes,
+            balls,
+        })
     }
 }
 
@@ -540,13 +630,23 @@ impl CandidateGeometry for SampleSets {
     fn nearest_sample(&self, i: usize, y: &Point3<f64>) -> (u32, f64) {
         self.indexes[i].nearest(y).unwrap_or((0, f64::INFINITY))
     }
-    fn nearest_samples(&self, i: usize, y: &Point3<f64>, k: Option<usize>, out: &mut Vec<(u32, f64)>) {
+    fn nearest_samples(
+        &self,
+        i: usize,
+        y: &Point3<f64>,
+        k: Option<usize>,
+        out: &mut Vec<(u32, f64)>,
+    ) {
         out.clear();
         let s = &self.samples[self.ranges[i].clone()];
         match k {
             Some(k) if k < s.len() => out.extend(self.indexes[i].nearest_n(y, k)),
             _ => {
-                out.extend(s.iter().enumerate().map(|(j, x)| (j as u32, (x - y).norm_squared())));
+                out.extend(
+                    s.iter()
+                        .enumerate()
+                        .map(|(j, x)| (j as u32, (x - y).norm_squared())),
+                );
                 out.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
             }
         }

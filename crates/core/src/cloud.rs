@@ -22,7 +22,10 @@ pub struct PointCloud {
 impl PointCloud {
     /// A cloud of bare positions.
     pub fn from_points(points: Vec<Point3<f64>>) -> Self {
-        PointCloud { points, ..Default::default() }
+        PointCloud {
+            points,
+            ..Default::default()
+        }
     }
     /// Number of points.
     pub fn len(&self) -> usize {

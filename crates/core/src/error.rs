@@ -43,10 +43,16 @@ impl Error {
     }
     /// Shorthand for [`Error::Format`].
     pub fn format(path: impl Into<PathBuf>, msg: impl Into<String>) -> Self {
-        Error::Format { path: path.into(), message: msg.into() }
+        Error::Format {
+            path: path.into(),
+            message: msg.into(),
+        }
     }
     /// Shorthand for [`Error::Io`].
     pub fn io(path: impl Into<PathBuf>, source: std::io::Error) -> Self {
-        Error::Io { path: path.into(), source }
+        Error::Io {
+            path: path.into(),
+            source,
+        }
     }
 }

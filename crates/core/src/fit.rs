@@ -127,7 +127,11 @@ fn physical_memory() -> u64 {
         .ok()
         .and_then(|s| {
             let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
-            line.split_whitespace().nth(1)?.parse::<u64>().ok().map(|kb| kb * 1024)
+            line.split_whitespace()
+                .nth(1)?
+                .parse::<u64>()
+                .ok()
+                .map(|kb| kb * 1024)
         })
         .unwrap_or(8 << 30)
 }
@@ -136,36 +140,56 @@ fn positive(name: &str, v: f64) -> Result<f64> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
-        Err(Error::invalid(format!("--{name} must be a positive length, got {v}")))
+        Err(Error::invalid(format!(
+            "--{name} must be a positive length, got {v}"
+        )))
     }
 }
 
 impl Settings {
     /// Resolves every default from the cloud (see the module docs) and validates.
     pub fn resolve(cloud: &PointCloud, index: &PointIndex, o: &FitOptions) -> Result<Settings> {
-        let (lo, hi) = cloud.bounds().ok_or_else(|| Error::invalid("the cloud is empty"))?;
+        let (lo, hi) = cloud
+            .bounds()
+            .ok_or_else(|| Error::invalid("the cloud is empty"))?;
         let diagonal = (hi - lo).norm();
         if !(diagonal > 0.0) {
-            return Err(Error::invalid("the cloud has no extent (all points coincide)"));
+            return Err(Error::invalid(
+                "the cloud has no extent (all points coincide)",
+            ));
         }
         let point_spacing = median_spacing(&cloud.points, index, 2000).unwrap_or(diagonal / 100.0);
-        let kinds = if o.kinds.is_empty() { vec![ShapeKind::Square] } else { o.kinds.clone() };
+        let kinds = if o.kinds.is_empty() {
+            vec![ShapeKind::Square]
+        } else {
+            o.kinds.clone()
+        };
         let size = positive("size", o.size.unwrap_or_else(|| nice_floor(diagonal / 8.0)))?;
         let spacing = positive("spacing", o.spacing.unwrap_or(size / 2.0))?;
         let radius = positive("radius", o.radius.unwrap_or(size / 10.0))?;
         let bend = positive("bend", o.bend.unwrap_or(spacing))?;
         let cap = o.cap.unwrap_or(spacing);
         if !(cap.is_finite() && cap >= 0.0) {
-            return Err(Error::invalid(format!("--cap must be a finite distance ≥ 0, got {cap}")));
+            return Err(Error::invalid(format!(
+                "--cap must be a finite distance ≥ 0, got {cap}"
+            )));
         }
-        let tubes = kinds.iter().any(|k| matches!(k, ShapeKind::Cylinder | ShapeKind::Elbow));
+        let tubes = kinds
+            .iter()
+            .any(|k| matches!(k, ShapeKind::Cylinder | ShapeKind::Elbow));
         let mut sample_spacing = size / 16.0;
         if tubes {
             sample_spacing = sample_spacing.min(std::f64::consts::TAU * radius / 12.0);
         }
-        let sample_spacing = positive("sample-spacing", o.sample_spacing.unwrap_or(sample_spacing.max(point_spacing)))?;
+        let sample_spacing = positive(
+            "sample-spacing",
+            o.sample_spacing
+                .unwrap_or(sample_spacing.max(point_spacing)),
+        )?;
         if kinds.contains(&ShapeKind::Mesh) && o.mesh.is_none() {
-            return Err(Error::invalid("the mesh type needs a mesh (--mesh-model FILE.ply)"));
+            return Err(Error::invalid(
+                "the mesh type needs a mesh (--mesh-model FILE.ply)",
+            ));
         }
         let chamfer = ChamferOptions {
             model: o.model,
@@ -204,10 +228,20 @@ impl Settings {
             .filter_map(|k| {
                 Some(match k {
                     ShapeKind::Square => Shape::Square { side: self.size },
-                    ShapeKind::Disk => Shape::Disk { diameter: self.size },
-                    ShapeKind::Sphere => Shape::Sphere { diameter: self.size },
-                    ShapeKind::Cylinder => Shape::Cylinder { length: self.size, radius: self.radius },
-                    ShapeKind::Elbow => Shape::Elbow { bend: self.bend, radius: self.radius },
+                    ShapeKind::Disk => Shape::Disk {
+                        diameter: self.size,
+                    },
+                    ShapeKind::Sphere => Shape::Sphere {
+                        diameter: self.size,
+                    },
+                    ShapeKind::Cylinder => Shape::Cylinder {
+                        length: self.size,
+                        radius: self.radius,
+                    },
+                    ShapeKind::Elbow => Shape::Elbow {
+                        bend: self.bend,
+                        radius: self.radius,
+                    },
                     ShapeKind::Mesh => Shape::Mesh(self.mesh.clone()?),
                 })
             })
@@ -292,7 +326,12 @@ pub struct FitResult {
 impl FitResult {
     /// `result.json` (DESIGN §3); `metrics` is inserted as given.
     pub fn to_json(&self, metrics: Value) -> Value {
-        result_json(self.settings.to_json(), metrics, &self.primitives, &self.existence)
+        result_json(
+            self.settings.to_json(),
+            metrics,
+            &self.primitives,
+            &self.existence,
+        )
     }
 
     /// All primitives as one mesh, with the primitive index of every face.
@@ -302,7 +341,12 @@ impl FitResult {
 }
 
 /// The `result.json` document shared by `fit`, `synth --truth` and `register`.
-pub fn result_json(settings: Value, metrics: Value, primitives: &[Primitive], existence: &[f64]) -> Value {
+pub fn result_json(
+    settings: Value,
+    metrics: Value,
+    primitives: &[Primitive],
+    existence: &[f64],
+) -> Value {
     let list: Vec<Value> = primitives
         .iter()
         .zip(existence)
@@ -327,7 +371,12 @@ pub fn primitives_mesh(primitives: &[Primitive]) -> (TriMesh, Vec<i32>) {
 }
 
 /// Estimated coefficient bytes for `points` points under `chamfer` with `candidates` candidates.
-pub fn estimate_bytes(points: usize, candidates: usize, max_samples: usize, chamfer: &ChamferOptions) -> u64 {
+pub fn estimate_bytes(
+    points: usize,
+    candidates: usize,
+    max_samples: usize,
+    chamfer: &ChamferOptions,
+) -> u64 {
     let per_point = chamfer.beta.unwrap_or(candidates).min(candidates) as u64
         * match chamfer.model {
             PointModel::Existence => 1,
@@ -341,7 +390,11 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     if cloud.is_empty() {
         return Err(Error::invalid("the cloud is empty"));
     }
-    if cloud.points.iter().any(|p| !p.coords.iter().all(|c| c.is_finite())) {
+    if cloud
+        .points
+        .iter()
+        .any(|p| !p.coords.iter().all(|c| c.is_finite()))
+    {
         return Err(Error::invalid("the cloud has non-finite coordinates"));
     }
     let index = PointIndex::new(&cloud.points);
@@ -352,10 +405,22 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     let candidates = CandidateSet::build(&settings.lattice(), cloud)?;
     let lattice_seconds = t0.elapsed().as_secs_f64();
     if candidates.is_empty() {
-        return Err(Error::invalid("the lattice has no candidates near the cloud"));
+        return Err(Error::invalid(
+            "the lattice has no candidates near the cloud",
+        ));
     }
-    let max_samples = candidates.templates.iter().map(|t| t.samples.len()).max().unwrap_or(1);
-    let need = estimate_bytes(cloud.len(), candidates.len(), max_samples, &settings.chamfer);
+    let max_samples = candidates
+        .templates
+        .iter()
+        .map(|t| t.samples.len())
+        .max()
+        .unwrap_or(1);
+    let need = estimate_bytes(
+        cloud.len(),
+        candidates.len(),
+        max_samples,
+        &settings.chamfer,
+    );
     if need > settings.memory_budget {
         return Err(Error::TooLarge(format!(
             "{} points × {} candidates would need about {:.1} GiB of coefficients (budget {:.1} GiB); \
@@ -366,7 +431,11 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
             settings.memory_budget as f64 / (1u64 << 30) as f64
         )));
     }
-    progress.message(&format!("{} candidates, {} samples per template at most", candidates.len(), max_samples));
+    progress.message(&format!(
+        "{} candidates, {} samples per template at most",
+        candidates.len(),
+        max_samples
+    ));
 
     let t1 = Instant::now();
     let coeffs = Coefficients::build(&cloud.points, &candidates, &settings.chamfer, progress)?;
@@ -382,7 +451,9 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     let solution = solve(&coeffs, &settings.solver, progress)?;
     let solve_seconds = t2.elapsed().as_secs_f64();
 
-    let chosen: Vec<usize> = (0..candidates.len()).filter(|&i| solution.exists[i]).collect();
+    let chosen: Vec<usize> = (0..candidates.len())
+        .filter(|&i| solution.exists[i])
+        .collect();
     let primitives = chosen.iter().map(|&i| candidates.primitive(i)).collect();
     let existence = chosen.iter().map(|&i| solution.probability[i]).collect();
     let stats = FitStats {
@@ -395,7 +466,13 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         coefficient_seconds,
         solve_seconds,
     };
-    Ok(FitResult { settings, primitives, existence, solution, stats })
+    Ok(FitResult {
+        settings,
+        primitives,
+        existence,
+        solution,
+        stats,
+    })
 }
 
 #[cfg(test)]
@@ -426,12 +503,19 @@ mod tests {
 
     #[test]
     fn fits_an_aligned_corner_with_squares() {
-        let options = FitOptions { size: Some(1.0), ..Default::default() };
+        let options = FitOptions {
+            size: Some(1.0),
+            ..Default::default()
+        };
         let result = fit(&corner(), &options, &Silent).unwrap();
         assert_eq!(result.settings.spacing, 0.5);
         // Every input point is on a chosen square (within the sample spacing).
         for p in corner().points.iter().step_by(7) {
-            let d = result.primitives.iter().map(|q| q.distance(p)).fold(f64::INFINITY, f64::min);
+            let d = result
+                .primitives
+                .iter()
+                .map(|q| q.distance(p))
+                .fold(f64::INFINITY, f64::min);
             assert!(d < 1e-9, "point {p:?} is {d} from the model");
         }
         // Two 2 m × 2 m faces need at least 4 squares each, and the polish leaves no
@@ -439,19 +523,31 @@ mod tests {
         assert!(result.primitives.len() >= 8, "{}", result.primitives.len());
         for q in &result.primitives {
             let c = q.center();
-            assert!(c.z.abs() < 1e-12 || c.x.abs() < 1e-12, "stray square at {c:?}");
+            assert!(
+                c.z.abs() < 1e-12 || c.x.abs() < 1e-12,
+                "stray square at {c:?}"
+            );
         }
     }
 
     #[test]
     fn bad_options_are_errors() {
         let c = corner();
-        let bad = FitOptions { size: Some(-1.0), ..Default::default() };
+        let bad = FitOptions {
+            size: Some(-1.0),
+            ..Default::default()
+        };
         assert!(fit(&c, &bad, &Silent).is_err());
-        let bad = FitOptions { cap: Some(f64::NAN), ..Default::default() };
+        let bad = FitOptions {
+            cap: Some(f64::NAN),
+            ..Default::default()
+        };
         assert!(fit(&c, &bad, &Silent).is_err());
         assert!(fit(&PointCloud::default(), &FitOptions::default(), &Silent).is_err());
-        let tiny = FitOptions { memory_budget: Some(10), ..Default::default() };
+        let tiny = FitOptions {
+            memory_budget: Some(10),
+            ..Default::default()
+        };
         assert!(matches!(fit(&c, &tiny, &Silent), Err(Error::TooLarge(_))));
     }
 }

@@ -34,14 +34,21 @@ impl LatticeSpec {
     /// Checks sizes and spacings.
     pub fn validate(&self) -> Result<()> {
         if self.shapes.is_empty() {
-            return Err(Error::invalid("the lattice needs at least one primitive type"));
+            return Err(Error::invalid(
+                "the lattice needs at least one primitive type",
+            ));
         }
         for s in &self.shapes {
             s.validate()?;
         }
-        for (name, v) in [("spacing", self.spacing), ("sample spacing", self.sample_spacing)] {
+        for (name, v) in [
+            ("spacing", self.spacing),
+            ("sample spacing", self.sample_spacing),
+        ] {
             if !(v.is_finite() && v > 0.0) {
-                return Err(Error::invalid(format!("lattice {name} must be a positive length, got {v}")));
+                return Err(Error::invalid(format!(
+                    "lattice {name} must be a positive length, got {v}"
+                )));
             }
         }
         if !self.origin.coords.iter().all(|c| c.is_finite()) {
@@ -61,7 +68,7 @@ impl LatticeSpec {
 pub fn orientations(kind: ShapeKind) -> Vec<UnitQuaternion<f64>> {
     use std::f64::consts::FRAC_PI_2;
     let axes = [
-        UnitQuaternion::identity(),                                   // local z → z
+        UnitQuaternion::identity(), // local z → z
         UnitQuaternion::from_axis_angle(&Vector3::y_axis(), FRAC_PI_2), // local z → x
         UnitQuaternion::from_axis_angle(&Vector3::x_axis(), -FRAC_PI_2), // local z → y
     ];
@@ -70,7 +77,9 @@ pub fn orientations(kind: ShapeKind) -> Vec<UnitQuaternion<f64>> {
         ShapeKind::Elbow => axes
             .iter()
             .flat_map(|a| {
-                (0..4).map(move |q| a * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q as f64 * FRAC_PI_2))
+                (0..4).map(move |q| {
+                    a * UnitQuaternion::from_axis_angle(&Vector3::z_axis(), q as f64 * FRAC_PI_2)
+                })
             })
             .collect(),
         ShapeKind::Sphere | ShapeKind::Mesh => vec![UnitQuaternion::identity()],
@@ -96,7 +105,12 @@ impl Template {
         let samples = shape.sample_surface(sample_spacing);
         let index = PointIndex::new(&samples);
         let radius = samples.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
-        Template { shape, samples, index, radius }
+        Template {
+            shape,
+            samples,
+            index,
+            radius,
+        }
     }
 }
 
@@ -113,7 +127,11 @@ pub struct CandidateSet {
 
 impl CandidateSet {
     /// A set from explicit `(template, pose)` pairs.
-    pub fn from_parts(templates: Vec<Template>, template_of: Vec<u32>, poses: Vec<Pose>) -> Result<Self> {
+    pub fn from_parts(
+        templates: Vec<Template>,
+        template_of: Vec<u32>,
+        poses: Vec<Pose>,
+    ) -> Result<Self> {
         if template_of.len() != poses.len() {
             return Err(Error::Shape(format!(
                 "{} template ids but {} poses",
@@ -122,9 +140,16 @@ impl CandidateSet {
             )));
         }
         if let Some(bad) = template_of.iter().find(|t| **t as usize >= templates.len()) {
-            return Err(Error::invalid(format!("template id {bad} out of range ({} templates)", templates.len())));
+            return Err(Error::invalid(format!(
+                "template id {bad} out of range ({} templates)",
+                templates.len()
+            )));
         }
-        Ok(CandidateSet { templates, template_of, poses })
+        Ok(CandidateSet {
+            templates,
+            template_of,
+            poses,
+        })
     }
 
     /// Builds the lattice of `spec` around `cloud`, keeping a candidate only when input
@@ -133,15 +158,23 @@ impl CandidateSet {
     pub fn build(spec: &LatticeSpec, cloud: &PointCloud) -> Result<Self> {
         spec.validate()?;
         if cloud.is_empty() {
-            return Err(Error::invalid("cannot build a lattice around an empty cloud"));
+            return Err(Error::invalid(
+                "cannot build a lattice around an empty cloud",
+            ));
         }
-        let templates: Vec<Template> =
-            spec.shapes.par_iter().map(|s| Template::new(s.clone(), spec.sample_spacing)).collect();
+        let templates: Vec<Template> = spec
+            .shapes
+            .par_iter()
+            .map(|s| Template::new(s.clone(), spec.sample_spacing))
+            .collect();
         let occupied = occupied_nodes(spec, &cloud.points);
         let mut template_of = Vec::new();
         let mut poses = Vec::new();
         for (t, template) in templates.iter().enumerate() {
-            let nodes = dilate(&occupied, template.radius / spec.spacing + 0.5 * 3f64.sqrt());
+            let nodes = dilate(
+                &occupied,
+                template.radius / spec.spacing + 0.5 * 3f64.sqrt(),
+            );
             let rotations = orientations(template.shape.kind());
             for node in &nodes {
                 let translation = node_position(spec, node).coords;
@@ -151,7 +184,11 @@ impl CandidateSet {
                 }
             }
         }
-        Ok(CandidateSet { templates, template_of, poses })
+        Ok(CandidateSet {
+            templates,
+            template_of,
+            poses,
+        })
     }
 
     /// Number of candidates N.
@@ -198,16 +235,29 @@ impl CandidateGeometry for CandidateSet {
     }
     fn bounding_ball(&self, i: usize) -> (Point3<f64>, f64) {
         let pose = &self.poses[i];
-        (Point3::from(pose.translation), self.template(i).radius * pose.scale)
+        (
+            Point3::from(pose.translation),
+            self.template(i).radius * pose.scale,
+        )
     }
     #[inline]
     fn nearest_sample(&self, i: usize, y: &Point3<f64>) -> (u32, f64) {
         let pose = &self.poses[i];
         let local = pose.to_local(y);
-        let (k, d2) = self.template(i).index.nearest(&local).unwrap_or((0, f64::INFINITY));
+        let (k, d2) = self
+            .template(i)
+            .index
+            .nearest(&local)
+            .unwrap_or((0, f64::INFINITY));
         (k, d2 * pose.scale * pose.scale)
     }
-    fn nearest_samples(&self, i: usize, y: &Point3<f64>, k: Option<usize>, out: &mut Vec<(u32, f64)>) {
+    fn nearest_samples(
+        &self,
+        i: usize,
+        y: &Point3<f64>,
+        k: Option<usize>,
+        out: &mut Vec<(u32, f64)>,
+    ) {
         let pose = &self.poses[i];
         let local = pose.to_local(y);
         let s2 = pose.scale * pose.scale;
@@ -215,11 +265,21 @@ impl CandidateGeometry for CandidateSet {
         out.clear();
         match k {
             Some(k) if k < template.samples.len() => {
-                out.extend(template.index.nearest_n(&local, k).into_iter().map(|(j, d)| (j, d * s2)));
+                out.extend(
+                    template
+                        .index
+                        .nearest_n(&local, k)
+                        .into_iter()
+                        .map(|(j, d)| (j, d * s2)),
+                );
             }
             _ => {
                 out.extend(
-                    template.samples.iter().enumerate().map(|(j, x)| (j as u32, (x - local).norm_squared() * s2)),
+                    template
+                        .samples
+                        .iter()
+                        .enumerate()
+                        .map(|(j, x)| (j as u32, (x - local).norm_squared() * s2)),
                 );
                 out.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
             }
@@ -232,7 +292,11 @@ type Node = [i32; 3];
 /// Grid coordinates of the lattice node nearest to `p`.
 fn node_of(spec: &LatticeSpec, p: &Point3<f64>) -> Node {
     let local = spec.frame.inverse_transform_vector(&(p - spec.origin)) / spec.spacing;
-    [local.x.round() as i32, local.y.round() as i32, local.z.round() as i32]
+    [
+        local.x.round() as i32,
+        local.y.round() as i32,
+        local.z.round() as i32,
+    ]
 }
 
 /// Scene position of a lattice node.
@@ -258,7 +322,11 @@ fn dilate(occupied: &[Node], reach: f64) -> Vec<Node> {
         .collect();
     let set: HashSet<Node> = occupied
         .iter()
-        .flat_map(|n| offsets.iter().map(move |o| [n[0] + o[0], n[1] + o[1], n[2] + o[2]]))
+        .flat_map(|n| {
+            offsets
+                .iter()
+                .map(move |o| [n[0] + o[0], n[1] + o[1], n[2] + o[2]])
+        })
         .collect();
     let mut nodes: Vec<Node> = set.into_iter().collect();
     nodes.sort_unstable();
@@ -285,8 +353,10 @@ mod tests {
         assert_eq!(orientations(ShapeKind::Elbow).len(), 12);
         assert_eq!(orientations(ShapeKind::Sphere).len(), 1);
         // Square normals cover the three axes.
-        let normals: Vec<Vector3<f64>> =
-            orientations(ShapeKind::Square).iter().map(|r| r * Vector3::z()).collect();
+        let normals: Vec<Vector3<f64>> = orientations(ShapeKind::Square)
+            .iter()
+            .map(|r| r * Vector3::z())
+            .collect();
         for axis in [Vector3::x(), Vector3::y(), Vector3::z()] {
             assert!(normals.iter().any(|n| (n - axis).norm() < 1e-12));
         }
@@ -294,13 +364,21 @@ mod tests {
 
     #[test]
     fn elbow_orientations_are_distinct() {
-        let elbow = Shape::Elbow { bend: 0.5, radius: 0.1 };
+        let elbow = Shape::Elbow {
+            bend: 0.5,
+            radius: 0.1,
+        };
         let probe = [Point3::new(0.5, 0.0, 0.1), Point3::new(0.3, 0.4, 0.0)];
-        let images: Vec<Vec<Point3<f64>>> =
-            orientations(elbow.kind()).iter().map(|r| probe.iter().map(|p| r * p).collect()).collect();
+        let images: Vec<Vec<Point3<f64>>> = orientations(elbow.kind())
+            .iter()
+            .map(|r| probe.iter().map(|p| r * p).collect())
+            .collect();
         for a in 0..images.len() {
             for b in a + 1..images.len() {
-                let same = images[a].iter().zip(&images[b]).all(|(p, q)| (p - q).norm() < 1e-9);
+                let same = images[a]
+                    .iter()
+                    .zip(&images[b])
+                    .all(|(p, q)| (p - q).norm() < 1e-9);
                 assert!(!same, "orientations {a} and {b} coincide");
             }
         }
@@ -326,13 +404,17 @@ mod tests {
 
     #[test]
     fn nearest_sample_matches_scene_brute_force() {
-        let cloud = PointCloud::from_points(vec![Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.3, 0.2)]);
+        let cloud =
+            PointCloud::from_points(vec![Point3::new(0.0, 0.0, 0.0), Point3::new(1.0, 0.3, 0.2)]);
         let set = CandidateSet::build(&spec(), &cloud).unwrap();
         let y = Point3::new(0.37, -0.21, 0.13);
         let mut buf = Vec::new();
         for i in 0..set.len() {
             set.scene_samples(i, &mut buf);
-            let brute = buf.iter().map(|x| (x - y).norm_squared()).fold(f64::INFINITY, f64::min);
+            let brute = buf
+                .iter()
+                .map(|x| (x - y).norm_squared())
+                .fold(f64::INFINITY, f64::min);
             let (_, d) = set.nearest_sample(i, &y);
             assert!((d - brute).abs() < 1e-12);
             let mut all = Vec::new();

@@ -40,7 +40,9 @@ impl Parameterization {
         match s {
             "box" => Ok(Parameterization::Box),
             "logit" => Ok(Parameterization::Logit),
-            o => Err(Error::invalid(format!("unknown parameterization {o:?} (box|logit)"))),
+            o => Err(Error::invalid(format!(
+                "unknown parameterization {o:?} (box|logit)"
+            ))),
         }
     }
 }
@@ -121,7 +123,11 @@ pub struct Solution {
 }
 
 /// Minimises the loss of `coeffs` over existence, thresholds and polishes.
-pub fn solve(coeffs: &Coefficients, options: &SolverOptions, progress: &dyn Progress) -> Result<Solution> {
+pub fn solve(
+    coeffs: &Coefficients,
+    options: &SolverOptions,
+    progress: &dyn Progress,
+) -> Result<Solution> {
     validate(options)?;
     let n = coeffs.candidates();
     let mut evaluator = Evaluator::new(coeffs);
@@ -129,7 +135,9 @@ pub fn solve(coeffs: &Coefficients, options: &SolverOptions, progress: &dyn Prog
     let run = match options.parameterization {
         Parameterization::Box => {
             let x0 = vec![options.initial; n];
-            lbfgs(x0, true, options, progress, |x, g| evaluator.evaluate(x, g).total)
+            lbfgs(x0, true, options, progress, |x, g| {
+                evaluator.evaluate(x, g).total
+            })
         }
         Parameterization::Logit => {
             let z0 = vec![logit(options.initial); n];
@@ -152,7 +160,11 @@ pub fn solve(coeffs: &Coefficients, options: &SolverOptions, progress: &dyn Prog
     progress.finish();
     let mut exists: Vec<bool> = run.x.iter().map(|&p| p >= options.threshold).collect();
     let thresholded = evaluator.binary_value(&exists);
-    let flips = if options.polish { polish(coeffs, &run.x, &mut exists, options.max_polish_sweeps) } else { 0 };
+    let flips = if options.polish {
+        polish(coeffs, &run.x, &mut exists, options.max_polish_sweeps)
+    } else {
+        0
+    };
     let binary = evaluator.binary_value(&exists);
     Ok(Solution {
         probability: run.x,
@@ -172,10 +184,14 @@ fn validate(o: &SolverOptions) -> Result<()> {
         return Err(Error::invalid("L-BFGS memory must be at least 1"));
     }
     if !(0.0..=1.0).contains(&o.initial) || !(0.0..=1.0).contains(&o.threshold) {
-        return Err(Error::invalid("initial probability and threshold must lie in [0, 1]"));
+        return Err(Error::invalid(
+            "initial probability and threshold must lie in [0, 1]",
+        ));
     }
     if o.parameterization == Parameterization::Logit && (o.initial <= 0.0 || o.initial >= 1.0) {
-        return Err(Error::invalid("the logit parameterization needs an initial probability in (0, 1)"));
+        return Err(Error::invalid(
+            "the logit parameterization needs an initial probability in (0, 1)",
+        ));
     }
     Ok(())
 }
@@ -229,12 +245,16 @@ pub fn lbfgs(
     let mut fx = f(&x, &mut g);
     let mut evaluations = 1;
     let mut history = vec![fx];
-    let (mut s_mem, mut y_mem, mut rho_mem): (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>) = (vec![], vec![], vec![]);
+    let (mut s_mem, mut y_mem, mut rho_mem): (Vec<Vec<f64>>, Vec<Vec<f64>>, Vec<f64>) =
+        (vec![], vec![], vec![]);
     let mut alpha = vec![0.0; m];
     let (mut d, mut x_new, mut g_new) = (vec![0.0; n], vec![0.0; n], vec![0.0; n]);
     let mut active = vec![false; n];
     let projected_norm = |x: &[f64], g: &[f64]| -> f64 {
-        x.iter().zip(g).map(|(xi, gi)| (xi - project(xi - gi)).abs()).fold(0.0, f64::max)
+        x.iter()
+            .zip(g)
+            .map(|(xi, gi)| (xi - project(xi - gi)).abs())
+            .fold(0.0, f64::max)
     };
     let pg0 = projected_norm(&x, &g);
     let mut stop = StopReason::Iterations;
@@ -252,7 +272,9 @@ pub fn lbfgs(
         let k = s_mem.len();
         for j in (0..k).rev() {
             alpha[j] = rho_mem[j] * dot(&s_mem[j], &d);
-            d.iter_mut().zip(&y_mem[j]).for_each(|(di, yi)| *di -= alpha[j] * yi);
+            d.iter_mut()
+                .zip(&y_mem[j])
+                .for_each(|(di, yi)| *di -= alpha[j] * yi);
         }
         if k > 0 {
             let gamma = dot(&s_mem[k - 1], &y_mem[k - 1]) / dot(&y_mem[k - 1], &y_mem[k - 1]);
@@ -260,7 +282,9 @@ pub fn lbfgs(
         }
         for j in 0..k {
             let beta = rho_mem[j] * dot(&y_mem[j], &d);
-            d.iter_mut().zip(&s_mem[j]).for_each(|(di, si)| *di += (alpha[j] - beta) * si);
+            d.iter_mut()
+                .zip(&s_mem[j])
+                .for_each(|(di, si)| *di += (alpha[j] - beta) * si);
         }
         for i in 0..n {
             d[i] = if active[i] { 0.0 } else { -d[i] };
@@ -271,9 +295,18 @@ pub fn lbfgs(
             s_mem.clear();
             y_mem.clear();
             rho_mem.clear();
-            let scale = g.iter().zip(&active).filter(|(_, a)| !**a).map(|(gi, _)| gi.abs()).fold(0.0, f64::max);
+            let scale = g
+                .iter()
+                .zip(&active)
+                .filter(|(_, a)| !**a)
+                .map(|(gi, _)| gi.abs())
+                .fold(0.0, f64::max);
             for i in 0..n {
-                d[i] = if active[i] || scale == 0.0 { 0.0 } else { -g[i] / scale };
+                d[i] = if active[i] || scale == 0.0 {
+                    0.0
+                } else {
+                    -g[i] / scale
+                };
             }
         }
         // Backtracking Armijo line search along the projection arc.
@@ -285,7 +318,11 @@ pub fn lbfgs(
             }
             let f_new = f(&x_new, &mut g_new);
             evaluations += 1;
-            let decrease: f64 = g.iter().zip(x_new.iter().zip(&x)).map(|(gi, (a, b))| gi * (a - b)).sum();
+            let decrease: f64 = g
+                .iter()
+                .zip(x_new.iter().zip(&x))
+                .map(|(gi, (a, b))| gi * (a - b))
+                .sum();
             if f_new.is_finite() && f_new <= fx + 1e-4 * decrease {
                 accepted = Some(f_new);
                 break;
@@ -322,7 +359,13 @@ pub fn lbfgs(
             break;
         }
     }
-    LbfgsRun { x, history, iterations, evaluations, stop }
+    LbfgsRun {
+        x,
+        history,
+        iterations,
+        evaluations,
+        stop,
+    }
 }
 
 /// Greedy single-candidate flips on the binary scene `exists`, each applied only if the
@@ -332,7 +375,12 @@ pub fn lbfgs(
 ///
 /// Incremental: each point keeps its current cost (the nearest existing entry, or
 /// `d_cap`) and owner; a flip only rescans the rows where the candidate has entries.
-pub fn polish(coeffs: &Coefficients, probability: &[f64], exists: &mut [bool], max_sweeps: usize) -> usize {
+pub fn polish(
+    coeffs: &Coefficients,
+    probability: &[f64],
+    exists: &mut [bool],
+    max_sweeps: usize,
+) -> usize {
     let n = coeffs.candidates();
     let (wp, wq) = (coeffs.options.primitive_weight, coeffs.options.point_weight);
     let cap = coeffs.options.cap;
@@ -344,7 +392,10 @@ pub fn polish(coeffs: &Coefficients, probability: &[f64], exists: &mut [bool], m
     }
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| probability[a].total_cmp(&probability[b]).then(a.cmp(&b)));
-    let scale = 1e-12 * (coeffs.g.iter().sum::<f64>() * wp + cost.iter().sum::<f64>() * wq).abs().max(1e-300);
+    let scale = 1e-12
+        * (coeffs.g.iter().sum::<f64>() * wp + cost.iter().sum::<f64>() * wq)
+            .abs()
+            .max(1e-300);
     let mut flips = 0;
     for _ in 0..max_sweeps {
         let mut changed = false;
@@ -362,7 +413,8 @@ pub fn polish(coeffs: &Coefficients, probability: &[f64], exists: &mut [bool], m
                     exists[i] = false;
                     for &(j, _) in list {
                         if owner[j as usize] == i as u32 {
-                            (owner[j as usize], cost[j as usize]) = first_existing(coeffs, j as usize, exists, u32::MAX);
+                            (owner[j as usize], cost[j as usize]) =
+                                first_existing(coeffs, j as usize, exists, u32::MAX);
                         }
                     }
                     flips += 1;
@@ -398,7 +450,11 @@ fn transpose(coeffs: &Coefficients) -> Vec<Vec<(u32, f64)>> {
     let mut rows: Vec<Vec<(u32, f64)>> = vec![Vec::new(); coeffs.candidates()];
     for j in 0..coeffs.points() {
         let r = coeffs.row(j);
-        for (k, (&c, &d)) in coeffs.cand[r.clone()].iter().zip(&coeffs.dist[r.clone()]).enumerate() {
+        for (k, (&c, &d)) in coeffs.cand[r.clone()]
+            .iter()
+            .zip(&coeffs.dist[r.clone()])
+            .enumerate()
+        {
             // Entries are sorted, so the first occurrence of a candidate is its nearest.
             if !coeffs.cand[r.start..r.start + k].contains(&c) {
                 rows[c as usize].push((j as u32, d));
@@ -430,7 +486,10 @@ mod tests {
     #[test]
     fn projected_lbfgs_finds_box_constrained_minimum() {
         let target = [-0.5, 0.3, 1.7, 0.9, 0.0];
-        let opts = SolverOptions { ftol: 1e-15, ..Default::default() };
+        let opts = SolverOptions {
+            ftol: 1e-15,
+            ..Default::default()
+        };
         let run = lbfgs(vec![0.5; 5], true, &opts, &Silent, |x, g| {
             let mut f = 0.0;
             for i in 0..5 {
@@ -449,14 +508,22 @@ mod tests {
 
     #[test]
     fn unconstrained_lbfgs_minimises_rosenbrock() {
-        let opts = SolverOptions { max_iterations: 500, ftol: 1e-15, ..Default::default() };
+        let opts = SolverOptions {
+            max_iterations: 500,
+            ftol: 1e-15,
+            ..Default::default()
+        };
         let run = lbfgs(vec![-1.2, 1.0], false, &opts, &Silent, |x, g| {
             let (a, b) = (x[0], x[1]);
             g[0] = -2.0 * (1.0 - a) - 400.0 * a * (b - a * a);
             g[1] = 200.0 * (b - a * a);
             (1.0 - a).powi(2) + 100.0 * (b - a * a).powi(2)
         });
-        assert!((run.x[0] - 1.0).abs() < 1e-4 && (run.x[1] - 1.0).abs() < 1e-4, "{:?}", run.x);
+        assert!(
+            (run.x[0] - 1.0).abs() < 1e-4 && (run.x[1] - 1.0).abs() < 1e-4,
+            "{:?}",
+            run.x
+        );
     }
 
     /// Two clusters of points; candidates: one on each cluster, one duplicate of the
@@ -485,11 +552,30 @@ mod tests {
     fn solve_keeps_one_candidate_per_cluster() {
         let (cloud, sets) = clusters();
         for parameterization in [Parameterization::Box, Parameterization::Logit] {
-            let opts = ChamferOptions { cap: 1.0, ..Default::default() };
+            let opts = ChamferOptions {
+                cap: 1.0,
+                ..Default::default()
+            };
             let c = Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap();
-            let sol = solve(&c, &SolverOptions { parameterization, ..Default::default() }, &Silent).unwrap();
-            assert!(sol.exists[1] && !sol.exists[3], "{parameterization:?}: {:?}", sol.exists);
-            assert!(sol.exists[0] ^ sol.exists[2], "duplicate kept: {:?}", sol.exists);
+            let sol = solve(
+                &c,
+                &SolverOptions {
+                    parameterization,
+                    ..Default::default()
+                },
+                &Silent,
+            )
+            .unwrap();
+            assert!(
+                sol.exists[1] && !sol.exists[3],
+                "{parameterization:?}: {:?}",
+                sol.exists
+            );
+            assert!(
+                sol.exists[0] ^ sol.exists[2],
+                "duplicate kept: {:?}",
+                sol.exists
+            );
             assert!(sol.binary.total <= sol.thresholded.total);
         }
     }
@@ -498,7 +584,10 @@ mod tests {
     fn polish_matches_exhaustive_single_flip_optimality() {
         // After polish, no single flip lowers the binary loss.
         let (cloud, sets) = clusters();
-        let opts = ChamferOptions { cap: 1.0, ..Default::default() };
+        let opts = ChamferOptions {
+            cap: 1.0,
+            ..Default::default()
+        };
         let c = Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap();
         let mut exists = vec![true; 4];
         polish(&c, &[0.5; 4], &mut exists, 20);
@@ -507,7 +596,10 @@ mod tests {
         for i in 0..4 {
             let mut e = exists.clone();
             e[i] = !e[i];
-            assert!(ev.binary_value(&e).total >= base - 1e-12, "flip {i} improves");
+            assert!(
+                ev.binary_value(&e).total >= base - 1e-12,
+                "flip {i} improves"
+            );
         }
     }
 }

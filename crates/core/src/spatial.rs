@@ -16,7 +16,9 @@ pub struct PointIndex {
 
 impl std::fmt::Debug for PointIndex {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.debug_struct("PointIndex").field("len", &self.len).finish()
+        f.debug_struct("PointIndex")
+            .field("len", &self.len)
+            .finish()
     }
 }
 
@@ -37,7 +39,10 @@ impl PointIndex {
         } else {
             ImmutableKdTree::new_from_slice(&coords).ok()
         };
-        PointIndex { tree, len: points.len() }
+        PointIndex {
+            tree,
+            len: points.len(),
+        }
     }
 
     /// Number of indexed points.
@@ -54,7 +59,10 @@ impl PointIndex {
     #[inline]
     pub fn nearest(&self, q: &Point3<f64>) -> Option<(u32, f64)> {
         let tree = self.tree.as_ref()?;
-        let r = tree.query(&as_array(q)).nearest_one::<SquaredEuclidean<f64>>().execute();
+        let r = tree
+            .query(&as_array(q))
+            .nearest_one::<SquaredEuclidean<f64>>()
+            .execute();
         Some((r.item, r.distance))
     }
 
@@ -76,7 +84,9 @@ impl PointIndex {
 
     /// Every point with squared distance ≤ `r2`, unsorted.
     pub fn within(&self, q: &Point3<f64>, r2: f64) -> Vec<(u32, f64)> {
-        let Some(tree) = self.tree.as_ref() else { return Vec::new() };
+        let Some(tree) = self.tree.as_ref() else {
+            return Vec::new();
+        };
         tree.query(&as_array(q))
             .within::<SquaredEuclidean<f64>>(r2)
             .unsorted()
@@ -124,8 +134,11 @@ mod tests {
         let pts = grid();
         let idx = PointIndex::new(&pts);
         let q = Point3::new(1.2, 3.4, 0.5);
-        let mut brute: Vec<(u32, f64)> =
-            pts.iter().enumerate().map(|(i, p)| (i as u32, (p - q).norm_squared())).collect();
+        let mut brute: Vec<(u32, f64)> = pts
+            .iter()
+            .enumerate()
+            .map(|(i, p)| (i as u32, (p - q).norm_squared()))
+            .collect();
         brute.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
         assert_eq!(idx.nearest(&q).unwrap().0, brute[0].0);
         assert_eq!(idx.nearest_n(&q, 4), brute[..4].to_vec());

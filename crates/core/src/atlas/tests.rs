@@ -575,23 +575,15 @@ fn closest_on_triangle_matches_dense_sampling() {
 }
 
 #[test]
-fn mesh_index_answers_a_large_mesh_in_microseconds() {
+fn mesh_index_matches_brute_force_on_a_large_mesh() {
+    // Speed of this query is measured in benches/, never asserted here.
     let mesh = icosphere(1.0, 6); // 81 920 faces
     assert_eq!(mesh.faces.len(), 81_920);
     let shape = Shape::from_mesh("icosphere-6", mesh.clone()).unwrap();
-    let queries = query_points(&shape, 11, 5000);
-    let start = std::time::Instant::now();
-    let distances: Vec<f64> = queries.iter().map(|q| shape.distance(q)).collect();
-    let per_query = start.elapsed().as_secs_f64() / queries.len() as f64;
-    for (q, d) in queries.iter().zip(&distances).step_by(500) {
-        assert!((d - mesh_brute_distance(&mesh, q)).abs() <= 1e-12);
+    let queries = query_points(&shape, 11, 400);
+    for q in queries.iter().step_by(20) {
+        assert!((shape.distance(q) - mesh_brute_distance(&mesh, q)).abs() <= 1e-12);
     }
-    // Brute force takes milliseconds per query here; the index, a few microseconds.
-    assert!(
-        per_query < 200e-6,
-        "closest-point query took {:.1} µs",
-        per_query * 1e6
-    );
 }
 
 // ---------------------------------------------------------------------------------------

@@ -19,7 +19,11 @@ struct Problem {
 fn random_problem(seed: u64, n: usize, j: usize) -> Problem {
     let mut rng = ChaCha8Rng::seed_from_u64(seed);
     let pt = |rng: &mut ChaCha8Rng| {
-        Point3::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0))
+        Point3::new(
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+            rng.random_range(-1.0..1.0),
+        )
     };
     let cloud = (0..j).map(|_| pt(&mut rng)).collect();
     let mut samples = Vec::new();
@@ -32,7 +36,13 @@ fn random_problem(seed: u64, n: usize, j: usize) -> Problem {
     }
     // Interleave owners so grouping is exercised.
     let p = (0..n).map(|_| rng.random_range(0.02..0.98)).collect();
-    Problem { cloud, samples, owner, n, p }
+    Problem {
+        cloud,
+        samples,
+        owner,
+        n,
+        p,
+    }
 }
 
 fn coefficients(pr: &Problem, opts: &ChamferOptions) -> Coefficients {
@@ -61,13 +71,20 @@ fn brute_force_existence(pr: &Problem, cap: f64) -> (f64, f64) {
                 .iter()
                 .zip(&pr.owner)
                 .filter(|(_, o)| **o == i)
-                .map(|(x, _)| pr.cloud.iter().map(|y| sq(x, y)).fold(f64::INFINITY, f64::min))
+                .map(|(x, _)| {
+                    pr.cloud
+                        .iter()
+                        .map(|y| sq(x, y))
+                        .fold(f64::INFINITY, f64::min)
+                })
                 .sum()
         })
         .collect();
     for mask in 0u32..(1 << pr.n) {
         let exists = |i: usize| mask & (1 << i) != 0;
-        let prob: f64 = (0..pr.n).map(|i| if exists(i) { pr.p[i] } else { 1.0 - pr.p[i] }).product();
+        let prob: f64 = (0..pr.n)
+            .map(|i| if exists(i) { pr.p[i] } else { 1.0 - pr.p[i] })
+            .product();
         prim += prob * (0..pr.n).filter(|&i| exists(i)).map(|i| g[i]).sum::<f64>();
         let pt: f64 = pr
             .cloud
@@ -92,7 +109,12 @@ fn explicit_independent(pr: &Problem, cap: f64) -> f64 {
     pr.cloud
         .iter()
         .map(|y| {
-            let mut e: Vec<(f64, usize)> = pr.samples.iter().zip(&pr.owner).map(|(x, &o)| (sq(x, y), o)).collect();
+            let mut e: Vec<(f64, usize)> = pr
+                .samples
+                .iter()
+                .zip(&pr.owner)
+                .map(|(x, &o)| (sq(x, y), o))
+                .collect();
             e.sort_by(|a, b| a.0.total_cmp(&b.0));
             let mut total = 0.0;
             for k in 0..e.len() {
@@ -114,11 +136,22 @@ fn existence_model_equals_brute_force_enumeration() {
         let n = 1 + (seed as usize % 10);
         let pr = random_problem(seed, n, 7);
         let cap = 0.3 + seed as f64 * 0.1;
-        let opts = ChamferOptions { cap, ..Default::default() };
+        let opts = ChamferOptions {
+            cap,
+            ..Default::default()
+        };
         let (v, _) = loss(&pr, &opts, &pr.p);
         let (prim, point) = brute_force_existence(&pr, cap);
-        assert!(rel_close(v.primitive, prim, 1e-9), "seed {seed}: primitive {} vs {prim}", v.primitive);
-        assert!(rel_close(v.point, point, 1e-9), "seed {seed}: point {} vs {point}", v.point);
+        assert!(
+            rel_close(v.primitive, prim, 1e-9),
+            "seed {seed}: primitive {} vs {prim}",
+            v.primitive
+        );
+        assert!(
+            rel_close(v.point, point, 1e-9),
+            "seed {seed}: point {} vs {point}",
+            v.point
+        );
         assert!(rel_close(v.total, prim + point, 1e-9));
     }
 }
@@ -128,9 +161,16 @@ fn independent_model_equals_explicit_formula() {
     for seed in 0..10 {
         let pr = random_problem(100 + seed, 1 + seed as usize % 8, 6);
         let cap = 0.5;
-        let opts = ChamferOptions { model: PointModel::Independent, cap, ..Default::default() };
+        let opts = ChamferOptions {
+            model: PointModel::Independent,
+            cap,
+            ..Default::default()
+        };
         let (v, _) = loss(&pr, &opts, &pr.p);
-        assert!(rel_close(v.point, explicit_independent(&pr, cap), 1e-9), "seed {seed}");
+        assert!(
+            rel_close(v.point, explicit_independent(&pr, cap), 1e-9),
+            "seed {seed}"
+        );
     }
 }
 
@@ -145,8 +185,13 @@ fn check_gradient(pr: &Problem, opts: &ChamferOptions) {
         plus[i] += h;
         let mut minus = pr.p.clone();
         minus[i] -= h;
-        let fd = (ev.evaluate(&plus, &mut scratch).total - ev.evaluate(&minus, &mut scratch).total) / (2.0 * h);
-        assert!((fd - g[i]).abs() <= 1e-6 * (1.0 + fd.abs()), "∂/∂p_{i}: analytic {} vs fd {fd} ({opts:?})", g[i]);
+        let fd = (ev.evaluate(&plus, &mut scratch).total - ev.evaluate(&minus, &mut scratch).total)
+            / (2.0 * h);
+        assert!(
+            (fd - g[i]).abs() <= 1e-6 * (1.0 + fd.abs()),
+            "∂/∂p_{i}: analytic {} vs fd {fd} ({opts:?})",
+            g[i]
+        );
     }
 }
 
@@ -174,8 +219,16 @@ fn gradients_match_central_differences() {
 fn unlimited_alpha_beta_equal_exact_mode() {
     let pr = random_problem(7, 8, 10);
     for model in [PointModel::Existence, PointModel::Independent] {
-        let exact = ChamferOptions { model, cap: 0.4, ..Default::default() };
-        let large = ChamferOptions { alpha: Some(1000), beta: Some(1000), ..exact.clone() };
+        let exact = ChamferOptions {
+            model,
+            cap: 0.4,
+            ..Default::default()
+        };
+        let large = ChamferOptions {
+            alpha: Some(1000),
+            beta: Some(1000),
+            ..exact.clone()
+        };
         let (a, ga) = loss(&pr, &exact, &pr.p);
         let (b, gb) = loss(&pr, &large, &pr.p);
         assert_eq!(a, b);
@@ -189,22 +242,54 @@ fn truncation_degrades_gracefully() {
     // error shrinks to zero as α and β grow.
     let pr = random_problem(11, 10, 40);
     for model in [PointModel::Existence, PointModel::Independent] {
-        let exact = ChamferOptions { model, cap: 20.0, ..Default::default() };
+        let exact = ChamferOptions {
+            model,
+            cap: 20.0,
+            ..Default::default()
+        };
         let reference = loss(&pr, &exact, &pr.p).0.point;
         let mut previous = f64::INFINITY;
         for beta in [1, 2, 3, 5, 8, 10] {
-            let v = loss(&pr, &ChamferOptions { beta: Some(beta), ..exact.clone() }, &pr.p).0.point;
-            assert!(v >= reference - 1e-12 && v <= previous + 1e-12, "{model:?} β={beta}: {v}");
+            let v = loss(
+                &pr,
+                &ChamferOptions {
+                    beta: Some(beta),
+                    ..exact.clone()
+                },
+                &pr.p,
+            )
+            .0
+            .point;
+            assert!(
+                v >= reference - 1e-12 && v <= previous + 1e-12,
+                "{model:?} β={beta}: {v}"
+            );
             previous = v;
         }
         assert!(rel_close(previous, reference, 1e-12));
     }
-    let exact = ChamferOptions { model: PointModel::Independent, cap: 20.0, ..Default::default() };
+    let exact = ChamferOptions {
+        model: PointModel::Independent,
+        cap: 20.0,
+        ..Default::default()
+    };
     let reference = loss(&pr, &exact, &pr.p).0.point;
     let mut previous = f64::INFINITY;
     for alpha in [1, 2, 3, 4] {
-        let v = loss(&pr, &ChamferOptions { alpha: Some(alpha), ..exact.clone() }, &pr.p).0.point;
-        assert!(v >= reference - 1e-12 && v <= previous + 1e-12, "α={alpha}: {v}");
+        let v = loss(
+            &pr,
+            &ChamferOptions {
+                alpha: Some(alpha),
+                ..exact.clone()
+            },
+            &pr.p,
+        )
+        .0
+        .point;
+        assert!(
+            v >= reference - 1e-12 && v <= previous + 1e-12,
+            "α={alpha}: {v}"
+        );
         previous = v;
     }
     assert!(rel_close(previous, reference, 1e-12));
@@ -214,11 +299,17 @@ fn truncation_degrades_gracefully() {
 fn beta_search_matches_brute_force_selection() {
     // The expanding search must find exactly the β nearest candidates.
     let pr = random_problem(5, 30, 50);
-    let opts = ChamferOptions { beta: Some(4), cap: 0.01, ..Default::default() };
+    let opts = ChamferOptions {
+        beta: Some(4),
+        cap: 0.01,
+        ..Default::default()
+    };
     let c = coefficients(&pr, &opts);
     let sets = SampleSets::new(&pr.samples, &pr.owner, pr.n).unwrap();
     for (j, y) in pr.cloud.iter().enumerate() {
-        let mut all: Vec<(f64, u32)> = (0..pr.n).map(|i| (sets.nearest_sample(i, y).1, i as u32)).collect();
+        let mut all: Vec<(f64, u32)> = (0..pr.n)
+            .map(|i| (sets.nearest_sample(i, y).1, i as u32))
+            .collect();
         all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
         let expect: Vec<u32> = all[..4].iter().map(|e| e.1).collect();
         assert_eq!(&c.cand[c.row(j)], &expect[..]);
@@ -228,7 +319,10 @@ fn beta_search_matches_brute_force_selection() {
 #[test]
 fn binary_value_is_the_binary_chamfer() {
     let pr = random_problem(3, 5, 12);
-    let opts = ChamferOptions { cap: 0.9, ..Default::default() };
+    let opts = ChamferOptions {
+        cap: 0.9,
+        ..Default::default()
+    };
     let c = coefficients(&pr, &opts);
     let mut ev = Evaluator::new(&c);
     let exists = [true, false, true, false, false];
@@ -253,9 +347,16 @@ fn binary_value_is_the_binary_chamfer() {
 #[test]
 fn evaluation_is_bit_identical_across_thread_counts() {
     let pr = random_problem(9, 40, 3000);
-    let opts = ChamferOptions { beta: Some(6), cap: 0.2, ..Default::default() };
+    let opts = ChamferOptions {
+        beta: Some(6),
+        cap: 0.2,
+        ..Default::default()
+    };
     let run = |threads: usize| {
-        let pool = rayon::ThreadPoolBuilder::new().num_threads(threads).build().unwrap();
+        let pool = rayon::ThreadPoolBuilder::new()
+            .num_threads(threads)
+            .build()
+            .unwrap();
         pool.install(|| {
             let c = coefficients(&pr, &opts);
             let mut ev = Evaluator::new(&c);
@@ -278,6 +379,20 @@ fn bad_sample_sets_are_errors() {
     assert!(SampleSets::new(&s, &[0], 1).is_err());
     assert!(SampleSets::new(&s, &[0, 2], 2).is_err());
     assert!(SampleSets::new(&s, &[0, 0], 2).is_err());
-    assert!(ChamferOptions { beta: Some(0), ..Default::default() }.validate().is_err());
-    assert!(ChamferOptions { cap: f64::NAN, ..Default::default() }.validate().is_err());
+    assert!(
+        ChamferOptions {
+            beta: Some(0),
+            ..Default::default()
+        }
+        .validate()
+        .is_err()
+    );
+    assert!(
+        ChamferOptions {
+            cap: f64::NAN,
+            ..Default::default()
+        }
+        .validate()
+        .is_err()
+    );
 }
