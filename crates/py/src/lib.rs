@@ -9,6 +9,7 @@
 mod chamfer;
 mod convert;
 mod fit;
+mod io;
 mod pool;
 mod synth;
 
@@ -21,6 +22,8 @@ mod _primfit {
     use super::chamfer::ChamferProblem;
     #[pymodule_export]
     use super::fit::fit;
+    #[pymodule_export]
+    use super::io::{read_mesh, read_ply, write_mesh, write_ply};
     #[pymodule_export]
     use super::synth::{
         synth_hallway, synth_nine_cylinders, synth_pipe, synth_registration, synth_six_in_a_row,

@@ -22,6 +22,7 @@ The optional PyTorch integration lives in :mod:`primfit.torch` (imported on dema
 from __future__ import annotations
 
 import json
+import os
 from collections.abc import Sequence
 from typing import Any
 
@@ -37,7 +38,11 @@ __all__ = [
     "__version__",
     "fit",
     "probabilistic_chamfer",
+    "read_mesh",
+    "read_ply",
     "synth",
+    "write_mesh",
+    "write_ply",
 ]
 
 ArrayLike = npt.ArrayLike
@@ -323,6 +328,75 @@ def fit(
         memory_budget=memory_budget,
     )
     return FitResult(document, existence)
+
+
+def read_ply(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
+    """Reads a PLY point cloud (ascii or binary; float, double or integer coordinates).
+
+    Returns a dict with ``points`` (J, 3) float64 and, when the file has them,
+    ``normals`` (J, 3) float64, ``colors`` (J, 3) uint8, ``labels`` (J,) int32 and
+    ``sensors`` (J, 3) float64 (per-point sensor origins). Points with a NaN or infinite
+    coordinate are dropped. Raises ``OSError`` (cannot open) or ``ValueError`` (not a
+    valid PLY file).
+    """
+    return _primfit.read_ply(os.fspath(path))
+
+
+def write_ply(
+    path: str | os.PathLike[str],
+    points: ArrayLike,
+    *,
+    normals: ArrayLike | None = None,
+    colors: ArrayLike | None = None,
+    labels: ArrayLike | None = None,
+    sensors: ArrayLike | None = None,
+    ascii: bool = False,
+) -> None:
+    """Writes a PLY point cloud atomically (binary little-endian unless ``ascii``).
+
+    ``points``, ``normals`` and ``sensors`` are (J, 3) and written as double; ``colors``
+    (J, 3) integers in 0..255; ``labels`` (J,) integers. :func:`read_ply` reads it back
+    exactly.
+    """
+
+    def ints(name: str, x: ArrayLike, ndim: int, dtype: type) -> np.ndarray:
+        a = _ints(name, x, ndim)
+        info = np.iinfo(dtype)
+        if a.size and (a.min() < info.min or a.max() > info.max):
+            raise ValueError(f"{name} must be in {info.min}..{info.max}")
+        return np.ascontiguousarray(a, dtype=dtype)
+
+    _primfit.write_ply(
+        os.fspath(path),
+        _points("points", points),
+        normals=None if normals is None else _points("normals", normals),
+        colors=None if colors is None else ints("colors", colors, 2, np.uint8),
+        labels=None if labels is None else ints("labels", labels, 1, np.int32),
+        sensors=None if sensors is None else _points("sensors", sensors),
+        ascii=ascii,
+    )
+
+
+def read_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Reads a PLY triangle mesh: ``(vertices (V, 3) float64, faces (F, 3) int64)``.
+
+    Polygons are fan-triangulated. The result can be passed as ``fit(mesh_model=...)``.
+    """
+    return _primfit.read_mesh(os.fspath(path))
+
+
+def write_mesh(
+    path: str | os.PathLike[str],
+    primitives: FitResult | Sequence[dict[str, Any]],
+    *,
+    ascii: bool = False,
+) -> None:
+    """Writes primitives (a :class:`FitResult` or dicts as in ``result.json``) as one
+    triangle-mesh PLY with a per-face ``primitive`` index, as ``primfit fit --mesh`` does.
+    """
+    if isinstance(primitives, FitResult):
+        primitives = primitives.primitives
+    _primfit.write_mesh(os.fspath(path), json.dumps(list(primitives)), ascii=ascii)
 
 
 from . import synth  # noqa: E402  (uses the helpers above)

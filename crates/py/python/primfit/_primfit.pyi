@@ -3,6 +3,8 @@
 Arrays must already be float64 (int64 for indices); the ``primfit`` facade converts.
 """
 
+import os
+
 import numpy as np
 import numpy.typing as npt
 
@@ -86,3 +88,17 @@ def synth_registration(
     *, mesh: tuple[_F64, _I64] | None = None, inliers: int = 100, outliers: int = 1900, translation: float = 0.0,
     scale: tuple[float, float] | None = None, outlier_box: float = 1.0, jitter: float = 0.0, seed: int = 0,
 ) -> _Scene: ...
+
+def read_ply(path: str | os.PathLike[str]) -> dict[str, npt.NDArray[np.generic]]: ...
+def write_ply(
+    path: str | os.PathLike[str],
+    points: _F64,
+    *,
+    normals: _F64 | None = None,
+    colors: npt.NDArray[np.uint8] | None = None,
+    labels: npt.NDArray[np.int32] | None = None,
+    sensors: _F64 | None = None,
+    ascii: bool = False,
+) -> None: ...
+def read_mesh(path: str | os.PathLike[str]) -> tuple[_F64, _I64]: ...
+def write_mesh(path: str | os.PathLike[str], primitives_json: str, *, ascii: bool = False) -> None: ...
