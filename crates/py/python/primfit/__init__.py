@@ -33,9 +33,11 @@ from . import _primfit
 from ._primfit import __version__
 
 __all__ = [
+    "Candidates",
     "ChamferProblem",
     "FitResult",
     "__version__",
+    "candidates",
     "fit",
     "probabilistic_chamfer",
     "read_mesh",
@@ -242,6 +244,55 @@ class FitResult:
         return f"FitResult({len(self.primitives)} primitives: {summary})"
 
 
+def _fit_options(
+    *,
+    types: Sequence[str] | str | None = None,
+    size: float | None = None,
+    radius: float | None = None,
+    bend: float | None = None,
+    spacing: float | None = None,
+    origin: Sequence[float] | None = None,
+    sample_spacing: float | None = None,
+    model: str = "existence",
+    alpha: Limit = None,
+    beta: Limit = None,
+    cap: float | None = None,
+    weights: tuple[float, float] | None = None,
+    parameterization: str = "box",
+    max_iterations: int = 200,
+    polish: bool = True,
+    mesh_model: tuple[ArrayLike, ArrayLike] | None = None,
+    seed: int = 0,
+    memory_budget: int | None = None,
+) -> _primfit.FitOptions:
+    if isinstance(types, str):
+        types = [t.strip() for t in types.split(",") if t.strip()]
+    mesh = None
+    if mesh_model is not None:
+        vertices, faces = mesh_model
+        mesh = (_points("mesh vertices", vertices), _ints("mesh faces", faces, 2))
+    return _primfit.FitOptions(
+        types=None if types is None else list(types),
+        size=size,
+        radius=radius,
+        bend=bend,
+        spacing=spacing,
+        origin=None if origin is None else [float(v) for v in origin],
+        sample_spacing=sample_spacing,
+        model=model,
+        alpha=alpha,
+        beta=beta,
+        cap=cap,
+        weights=None if weights is None else (float(weights[0]), float(weights[1])),
+        parameterization=parameterization,
+        max_iterations=max_iterations,
+        polish=polish,
+        mesh_model=mesh,
+        seed=seed,
+        memory_budget=memory_budget,
+    )
+
+
 def fit(
     cloud: ArrayLike,
     *,
@@ -294,40 +345,66 @@ def fit(
     polish : bool
         Run the discrete polish after thresholding.
     mesh_model : (vertices (V, 3), faces (F, 3) int)
-        The triangle mesh of the ``mesh`` type.
+        The triangle mesh of the ``mesh`` type (e.g. from :func:`read_mesh`).
     seed : int
         Seed for every random choice.
     memory_budget : int
         Upper bound on coefficient memory in bytes (default half the machine's memory).
     """
-    if isinstance(types, str):
-        types = [t.strip() for t in types.split(",") if t.strip()]
-    mesh = None
-    if mesh_model is not None:
-        vertices, faces = mesh_model
-        mesh = (_points("mesh vertices", vertices), _ints("mesh faces", faces, 2))
-    document, existence = _primfit.fit(
-        _points("cloud", cloud),
-        types=None if types is None else list(types),
-        size=size,
-        radius=radius,
-        bend=bend,
-        spacing=spacing,
-        origin=None if origin is None else [float(v) for v in origin],
-        sample_spacing=sample_spacing,
-        model=model,
-        alpha=alpha,
-        beta=beta,
-        cap=cap,
-        weights=None if weights is None else (float(weights[0]), float(weights[1])),
-        parameterization=parameterization,
-        max_iterations=max_iterations,
-        polish=polish,
-        mesh_model=mesh,
-        seed=seed,
-        memory_budget=memory_budget,
+    options = _fit_options(
+        types=types, size=size, radius=radius, bend=bend, spacing=spacing, origin=origin,
+        sample_spacing=sample_spacing, model=model, alpha=alpha, beta=beta, cap=cap, weights=weights,
+        parameterization=parameterization, max_iterations=max_iterations, polish=polish,
+        mesh_model=mesh_model, seed=seed, memory_budget=memory_budget,
     )
-    return FitResult(document, existence)
+    return FitResult(*_primfit.fit(_points("cloud", cloud), options))
+
+
+class Candidates:
+    """The candidate set a :func:`fit` would optimise over, as explicit samples.
+
+    Attributes
+    ----------
+    samples : (K, 3) float64 array
+        Every candidate's surface samples, in scene coordinates.
+    owner : (K,) int64 array
+        The candidate of each sample, in ``0..N``.
+    primitives : list of dict
+        The N candidates, in the ``result.json`` format.
+    settings : dict
+        Every setting the fit would use (sizes, ``cap`` as a distance, ``alpha``, ...).
+    """
+
+    def __init__(self, settings: str, samples: np.ndarray, owner: np.ndarray, primitives: str) -> None:
+        self.settings: dict[str, Any] = json.loads(settings)
+        self.samples = samples
+        self.owner = owner
+        self.primitives: list[dict[str, Any]] = json.loads(primitives)
+
+    def __len__(self) -> int:
+        return len(self.primitives)
+
+    def problem(self, cloud: ArrayLike) -> ChamferProblem:
+        """The :class:`ChamferProblem` of ``cloud`` over these candidates, with the
+        fit's model, alpha, beta, weights and ``d_cap = cap ** 2``."""
+        s = self.settings
+        return ChamferProblem(
+            cloud, self.samples, self.owner, len(self), model=s["model"], alpha=s["alpha"],
+            beta=s["beta"], cap=s["cap"] ** 2, weights=tuple(s["weights"]),
+        )
+
+    def __repr__(self) -> str:
+        return f"Candidates({len(self)} candidates, {len(self.samples)} samples)"
+
+
+def candidates(cloud: ArrayLike, **options: Any) -> Candidates:
+    """The candidates (lattice after the occupancy prior) that ``fit(cloud, **options)``
+    would optimise over; ``options`` are those of :func:`fit`.
+
+    With :meth:`Candidates.problem` this reproduces a fit's loss in Python, e.g. to run
+    another optimiser on it.
+    """
+    return Candidates(*_primfit.candidates(_points("cloud", cloud), _fit_options(**options)))
 
 
 def read_ply(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:

@@ -41,28 +41,32 @@ class ChamferProblem:
     def evaluate(self, p: _F64) -> tuple[float, float, _F64]: ...
     def evaluate_batch(self, p: _F64) -> tuple[_F64, _F64]: ...
 
-def fit(
-    cloud: _F64,
-    *,
-    types: list[str] | None = None,
-    size: float | None = None,
-    radius: float | None = None,
-    bend: float | None = None,
-    spacing: float | None = None,
-    origin: list[float] | None = None,
-    sample_spacing: float | None = None,
-    model: str = "existence",
-    alpha: _Limit = None,
-    beta: _Limit = None,
-    cap: float | None = None,
-    weights: tuple[float, float] | None = None,
-    parameterization: str = "box",
-    max_iterations: int = 200,
-    polish: bool = True,
-    mesh_model: tuple[_F64, _I64] | None = None,
-    seed: int = 0,
-    memory_budget: int | None = None,
-) -> tuple[str, _F64]: ...
+class FitOptions:
+    def __new__(
+        cls,
+        *,
+        types: list[str] | None = None,
+        size: float | None = None,
+        radius: float | None = None,
+        bend: float | None = None,
+        spacing: float | None = None,
+        origin: list[float] | None = None,
+        sample_spacing: float | None = None,
+        model: str = "existence",
+        alpha: _Limit = None,
+        beta: _Limit = None,
+        cap: float | None = None,
+        weights: tuple[float, float] | None = None,
+        parameterization: str = "box",
+        max_iterations: int = 200,
+        polish: bool = True,
+        mesh_model: tuple[_F64, _I64] | None = None,
+        seed: int = 0,
+        memory_budget: int | None = None,
+    ) -> FitOptions: ...
+
+def fit(cloud: _F64, options: FitOptions) -> tuple[str, _F64]: ...
+def candidates(cloud: _F64, options: FitOptions) -> tuple[str, _F64, _I64, str]: ...
 
 _Scene = tuple[_F64, str]
 
