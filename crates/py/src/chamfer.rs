@@ -11,6 +11,9 @@ use rayon::prelude::*;
 use crate::convert::{self, ToPyResult};
 use crate::pool;
 
+/// `(totals (B,), grads (B, N))` of a batch evaluation.
+type Batch<'py> = (Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>);
+
 /// The probabilistic chamfer distance between a cloud and a fixed candidate set given
 /// by explicit samples (DESIGN §2); its coefficients are computed once, here.
 #[pyclass(module = "primfit._primfit", frozen)]
@@ -124,7 +127,7 @@ impl ChamferProblem {
         &self,
         py: Python<'py>,
         p: PyReadonlyArray2<'py, f64>,
-    ) -> PyResult<(Bound<'py, PyArray1<f64>>, Bound<'py, PyArray2<f64>>)> {
+    ) -> PyResult<Batch<'py>> {
         let n = self.coeffs.candidates();
         let flat = convert::rows("P", &p, n)?;
         let b = flat.len() / n;

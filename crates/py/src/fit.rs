@@ -90,6 +90,14 @@ impl PyFitOptions {
     }
 }
 
+/// `(settings_json, samples (K, 3), owner (K,), primitives_json)`.
+type CandidateArrays<'py> = (
+    String,
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray1<i64>>,
+    String,
+);
+
 fn json_text(v: &serde_json::Value) -> PyResult<String> {
     serde_json::to_string_pretty(v)
         .map_err(|e| PyRuntimeError::new_err(format!("cannot write JSON: {e}")))
@@ -127,17 +135,11 @@ pub fn fit<'py>(
 /// primitives_json)`: every candidate's surface samples in scene coordinates, the
 /// candidate of each sample, and the candidates as primitives.
 #[pyfunction]
-#[allow(clippy::type_complexity)]
 pub fn candidates<'py>(
     py: Python<'py>,
     cloud: PyReadonlyArray2<'py, f64>,
     options: &PyFitOptions,
-) -> PyResult<(
-    String,
-    Bound<'py, PyArray2<f64>>,
-    Bound<'py, PyArray1<i64>>,
-    String,
-)> {
+) -> PyResult<CandidateArrays<'py>> {
     let cloud = PointCloud::from_points(convert::points("cloud", &cloud, false)?);
     let (settings, samples, owner, primitives) = py
         .detach(|| {

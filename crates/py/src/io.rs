@@ -17,6 +17,9 @@ use crate::convert::{self, ToPyResult};
 use crate::pool;
 use crate::synth::points_array;
 
+/// `(vertices (V, 3), faces (F, 3))`.
+type Mesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>);
+
 fn encoding(ascii: bool) -> Encoding {
     if ascii {
         Encoding::Ascii
@@ -127,10 +130,7 @@ pub fn write_ply(
 
 /// Reads a PLY triangle mesh: `(vertices (V, 3), faces (F, 3) int64)`.
 #[pyfunction]
-pub fn read_mesh<'py>(
-    py: Python<'py>,
-    path: PathBuf,
-) -> PyResult<(Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>)> {
+pub fn read_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Mesh<'py>> {
     let mesh = py.detach(|| io::read_mesh(&path)).py()?;
     let faces: Vec<i64> = mesh.faces.iter().flatten().map(|&i| i64::from(i)).collect();
     let faces = Array2::from_shape_vec((mesh.faces.len(), 3), faces).expect("3 per face");

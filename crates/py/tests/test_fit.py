@@ -140,7 +140,7 @@ def cli_binary() -> Path:
         cwd=REPO, capture_output=True, text=True,
     )
     if build.returncode != 0:
-        unavailable(f"the primfit CLI does not build: {build.stderr.strip()[-2000:]}")
+        unavailable(f"the primfit CLI does not build: {build.stderr.strip()[-400:]}")
     target = Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target"))
     return target / "debug" / "primfit"
 
