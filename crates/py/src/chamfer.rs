@@ -60,14 +60,11 @@ impl ChamferProblem {
             primitive_weight: weights.0,
             point_weight: weights.1,
         };
-        let coeffs = py
-            .detach(|| {
-                pool::run(|| {
-                    let sets = SampleSets::new(&samples, &owner, n)?;
-                    Coefficients::build(&cloud, &sets, &options, &Silent)
-                })
-            })?
-            .py()?;
+        let coeffs = pool::detached(py, || {
+            let sets = SampleSets::new(&samples, &owner, n)?;
+            Coefficients::build(&cloud, &sets, &options, &Silent)
+        })?
+        .py()?;
         Ok(ChamferProblem { coeffs })
     }
 
@@ -112,12 +109,10 @@ impl ChamferProblem {
     ) -> PyResult<(f64, f64, Bound<'py, PyArray1<f64>>)> {
         let p = convert::vector(&p);
         convert::probabilities("p", &p, self.coeffs.candidates())?;
-        let (value, grad) = py.detach(|| {
-            pool::run(|| {
-                let mut grad = vec![0.0; self.coeffs.candidates()];
-                let value = Evaluator::new(&self.coeffs).evaluate(&p, &mut grad);
-                (value, grad)
-            })
+        let (value, grad) = pool::detached(py, || {
+            let mut grad = vec![0.0; self.coeffs.candidates()];
+            let value = Evaluator::new(&self.coeffs).evaluate(&p, &mut grad);
+            (value, grad)
         })?;
         Ok((value.primitive, value.point, grad.into_pyarray(py)))
     }
@@ -131,19 +126,17 @@ impl ChamferProblem {
         let n = self.coeffs.candidates();
         let flat = convert::rows("P", &p, n)?;
         let b = flat.len() / n;
-        let (totals, grads) = py.detach(|| {
-            pool::run(|| {
-                let mut grads = vec![0.0; b * n];
-                let totals: Vec<f64> = flat
-                    .par_chunks(n)
-                    .zip(grads.par_chunks_mut(n))
-                    .map_init(
-                        || Evaluator::new(&self.coeffs),
-                        |ev, (p, g)| ev.evaluate(p, g).total,
-                    )
-                    .collect();
-                (totals, grads)
-            })
+        let (totals, grads) = pool::detached(py, || {
+            let mut grads = vec![0.0; b * n];
+            let totals: Vec<f64> = flat
+                .par_chunks(n)
+                .zip(grads.par_chunks_mut(n))
+                .map_init(
+                    || Evaluator::new(&self.coeffs),
+                    |ev, (p, g)| ev.evaluate(p, g).total,
+                )
+                .collect();
+            (totals, grads)
         })?;
         let grads = Array2::from_shape_vec((b, n), grads).expect("b · n gradient cells");
         Ok((totals.into_pyarray(py), grads.into_pyarray(py)))

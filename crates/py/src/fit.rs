@@ -113,20 +113,17 @@ pub fn fit<'py>(
     options: &PyFitOptions,
 ) -> PyResult<(String, Bound<'py, PyArray1<f64>>)> {
     let cloud = PointCloud::from_points(convert::points("cloud", &cloud, false)?);
-    let (doc, existence) = py
-        .detach(|| {
-            pool::run(|| -> Result<_> {
-                let result = core_fit::fit(&cloud, &options.0, &Silent)?;
-                let m = metrics::evaluate(
-                    &cloud.points,
-                    &result.primitives,
-                    None,
-                    &MetricsOptions::default(),
-                )?;
-                Ok((result.to_json(m.to_json()), result.existence))
-            })
-        })?
-        .py()?;
+    let (doc, existence) = pool::detached(py, || -> Result<_> {
+        let result = core_fit::fit(&cloud, &options.0, &Silent)?;
+        let m = metrics::evaluate(
+            &cloud.points,
+            &result.primitives,
+            None,
+            &MetricsOptions::default(),
+        )?;
+        Ok((result.to_json(m.to_json()), result.existence))
+    })?
+    .py()?;
     Ok((json_text(&doc)?, existence.into_pyarray(py)))
 }
 
@@ -141,29 +138,25 @@ pub fn candidates<'py>(
     options: &PyFitOptions,
 ) -> PyResult<CandidateArrays<'py>> {
     let cloud = PointCloud::from_points(convert::points("cloud", &cloud, false)?);
-    let (settings, samples, owner, primitives) = py
-        .detach(|| {
-            pool::run(|| -> Result<_> {
-                let index = PointIndex::new(&cloud.points);
-                let settings = Settings::resolve(&cloud, &index, &options.0)?;
-                let set = CandidateSet::build(&settings.lattice(), &cloud)?;
-                let (mut samples, mut owner, mut buf) = (Vec::new(), Vec::new(), Vec::new());
-                for i in 0..set.len() {
-                    set.scene_samples(i, &mut buf);
-                    samples.extend_from_slice(&buf);
-                    owner.extend(std::iter::repeat_n(i as i64, buf.len()));
-                }
-                let primitives: Vec<_> =
-                    (0..set.len()).map(|i| set.primitive(i).to_json()).collect();
-                Ok((
-                    settings.to_json(),
-                    samples,
-                    owner,
-                    serde_json::Value::Array(primitives),
-                ))
-            })
-        })?
-        .py()?;
+    let (settings, samples, owner, primitives) = pool::detached(py, || -> Result<_> {
+        let index = PointIndex::new(&cloud.points);
+        let settings = Settings::resolve(&cloud, &index, &options.0)?;
+        let set = CandidateSet::build(&settings.lattice(), &cloud)?;
+        let (mut samples, mut owner, mut buf) = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..set.len() {
+            set.scene_samples(i, &mut buf);
+            samples.extend_from_slice(&buf);
+            owner.extend(std::iter::repeat_n(i as i64, buf.len()));
+        }
+        let primitives: Vec<_> = (0..set.len()).map(|i| set.primitive(i).to_json()).collect();
+        Ok((
+            settings.to_json(),
+            samples,
+            owner,
+            serde_json::Value::Array(primitives),
+        ))
+    })?
+    .py()?;
     Ok((
         json_text(&settings)?,
         points_array(py, &samples),

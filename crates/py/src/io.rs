@@ -43,7 +43,7 @@ fn triples<T: Copy>(name: &str, a: ArrayView2<'_, T>, rows: usize) -> PyResult<V
 /// `normals` (J, 3), `colors` (J, 3) uint8, `labels` (J,) int32, `sensors` (J, 3).
 #[pyfunction]
 pub fn read_ply<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
-    let cloud = py.detach(|| io::read_cloud(&path)).py()?;
+    let cloud = pool::detached(py, || io::read_cloud(&path))?.py()?;
     let out = PyDict::new(py);
     out.set_item("points", points_array(py, &cloud.points))?;
     if let Some(n) = &cloud.normals {
@@ -124,14 +124,13 @@ pub fn write_ply(
         labels,
         sensors,
     };
-    py.detach(|| io::write_cloud(&path, &cloud, encoding(ascii)))
-        .py()
+    pool::detached(py, || io::write_cloud(&path, &cloud, encoding(ascii)))?.py()
 }
 
 /// Reads a PLY triangle mesh: `(vertices (V, 3), faces (F, 3) int64)`.
 #[pyfunction]
 pub fn read_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Mesh<'py>> {
-    let mesh = py.detach(|| io::read_mesh(&path)).py()?;
+    let mesh = pool::detached(py, || io::read_mesh(&path))?.py()?;
     let faces: Vec<i64> = mesh.faces.iter().flatten().map(|&i| i64::from(i)).collect();
     let faces = Array2::from_shape_vec((mesh.faces.len(), 3), faces).expect("3 per face");
     Ok((points_array(py, &mesh.vertices), faces.into_pyarray(py)))
@@ -152,24 +151,22 @@ pub fn write_mesh(
     let list = doc
         .as_array()
         .ok_or_else(|| PyValueError::new_err("primitives must be a list"))?;
-    py.detach(|| {
-        pool::run(|| -> Result<()> {
-            let load = |source: &str| -> Result<MeshShape> {
-                MeshShape::new(source, io::read_mesh(std::path::Path::new(source))?)
-            };
-            let prims = list
-                .iter()
-                .enumerate()
-                .map(|(k, v)| {
-                    Primitive::from_json(v, &load).map_err(|e| match e {
-                        Error::Io { .. } => e,
-                        other => Error::invalid(format!("primitive {k}: {other}")),
-                    })
+    pool::detached(py, || -> Result<()> {
+        let load = |source: &str| -> Result<MeshShape> {
+            MeshShape::new(source, io::read_mesh(std::path::Path::new(source))?)
+        };
+        let prims = list
+            .iter()
+            .enumerate()
+            .map(|(k, v)| {
+                Primitive::from_json(v, &load).map_err(|e| match e {
+                    Error::Io { .. } => e,
+                    other => Error::invalid(format!("primitive {k}: {other}")),
                 })
-                .collect::<Result<Vec<_>>>()?;
-            let (mesh, owner) = primitives_mesh(&prims);
-            io::write_mesh(&path, &mesh, Some(&owner), encoding(ascii))
-        })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let (mesh, owner) = primitives_mesh(&prims);
+        io::write_mesh(&path, &mesh, Some(&owner), encoding(ascii))
     })?
     .py()
 }

@@ -9,8 +9,8 @@
 
 use std::sync::{Arc, Mutex, PoisonError};
 
-use pyo3::PyResult;
 use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
 use rayon::{ThreadPool, ThreadPoolBuilder};
 
 /// The pool of the process that built it.
@@ -39,6 +39,12 @@ fn current() -> PyResult<Arc<ThreadPool>> {
 }
 
 /// Runs `f` on this process's pool (call it with the GIL released).
-pub fn run<R: Send>(f: impl FnOnce() -> R + Send) -> PyResult<R> {
+fn run<R: Send>(f: impl FnOnce() -> R + Send) -> PyResult<R> {
     Ok(current()?.install(f))
+}
+
+/// Runs `f` on this process's pool with the GIL released: how every long call of the
+/// bindings runs.
+pub fn detached<R: Send>(py: Python<'_>, f: impl FnOnce() -> R + Send) -> PyResult<R> {
+    py.detach(|| run(f))
 }

@@ -36,7 +36,7 @@ fn generate<'py>(
     py: Python<'py>,
     make: impl FnOnce() -> Result<Scene> + Send,
 ) -> PyResult<SceneOutput<'py>> {
-    let scene = py.detach(|| pool::run(make))?.py()?;
+    let scene = pool::detached(py, make)?.py()?;
     Ok((
         points_array(py, &scene.cloud.points),
         truth_json(&scene.truth),

@@ -7,6 +7,24 @@ import os
 
 import numpy as np
 import numpy.typing as npt
+from typing import final
+
+__all__ = [
+    "ChamferProblem",
+    "FitOptions",
+    "__version__",
+    "candidates",
+    "fit",
+    "read_mesh",
+    "read_ply",
+    "synth_hallway",
+    "synth_nine_cylinders",
+    "synth_pipe",
+    "synth_registration",
+    "synth_six_in_a_row",
+    "write_mesh",
+    "write_ply",
+]
 
 __version__: str
 
@@ -14,6 +32,7 @@ _F64 = npt.NDArray[np.float64]
 _I64 = npt.NDArray[np.int64]
 _Limit = int | float | str | None
 
+@final
 class ChamferProblem:
     def __new__(
         cls,
@@ -26,7 +45,7 @@ class ChamferProblem:
         alpha: _Limit = None,
         beta: _Limit = None,
         cap: float = 0.0,
-        weights: tuple[float, float] = (1.0, 1.0),
+        weights: tuple[float, float] = ...,  # (1.0, 1.0)
     ) -> ChamferProblem: ...
     @property
     def n_candidates(self) -> int: ...
@@ -41,6 +60,7 @@ class ChamferProblem:
     def evaluate(self, p: _F64) -> tuple[float, float, _F64]: ...
     def evaluate_batch(self, p: _F64) -> tuple[_F64, _F64]: ...
 
+@final
 class FitOptions:
     def __new__(
         cls,
