@@ -40,12 +40,18 @@ enum Command {
 fn main() -> ExitCode {
     let cli = Cli::parse();
     if let Some(n) = cli.threads {
-        if let Err(e) = rayon::ThreadPoolBuilder::new().num_threads(n).build_global() {
+        if let Err(e) = rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()
+        {
             eprintln!("error: cannot start {n} threads: {e}");
             return ExitCode::FAILURE;
         }
     }
-    let out = commands::Output { quiet: cli.quiet, verbose: cli.verbose };
+    let out = commands::Output {
+        quiet: cli.quiet,
+        verbose: cli.verbose,
+    };
     let result = match cli.command {
         Command::Fit(a) => commands::fit::run(a, &out),
         Command::Synth(a) => commands::synth::run(a, &out),

@@ -18,7 +18,11 @@ impl Bars {
     /// Bars are drawn only on an interactive terminal and when not quiet.
     pub fn new(quiet: bool, verbose: bool) -> Self {
         let visible = !quiet && std::io::stdout().is_terminal() && std::io::stderr().is_terminal();
-        Bars { bar: Mutex::new(None), visible, verbose: verbose && !quiet }
+        Bars {
+            bar: Mutex::new(None),
+            visible,
+            verbose: verbose && !quiet,
+        }
     }
 }
 
@@ -28,9 +32,10 @@ impl Progress for Bars {
             return;
         }
         let bar = ProgressBar::new(total);
-        let style = ProgressStyle::with_template("{prefix:>16} [{bar:40}] {pos}/{len} {elapsed_precise}")
-            .unwrap_or_else(|_| ProgressStyle::default_bar())
-            .progress_chars("=> ");
+        let style =
+            ProgressStyle::with_template("{prefix:>16} [{bar:40}] {pos}/{len} {elapsed_precise}")
+                .unwrap_or_else(|_| ProgressStyle::default_bar())
+                .progress_chars("=> ");
         bar.set_style(style);
         bar.set_prefix(stage.to_string());
         if let Ok(mut b) = self.bar.lock() {

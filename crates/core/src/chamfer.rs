@@ -46,6 +46,11 @@ pub trait CandidateGeometry: Sync {
     fn bounding_ball(&self, i: usize) -> (Point3<f64>, f64);
     /// `(sample index, squared distance)` of candidate `i`'s sample nearest to `y`.
     fn nearest_sample(&self, i: usize, y: &Point3<f64>) -> (u32, f64);
+    /// Squared distance from `y` to candidate `i`'s continuous surface, when the geometry
+    /// knows it (the limit of infinitely dense samples). Defaults to the nearest sample.
+    fn surface_distance(&self, i: usize, y: &Point3<f64>) -> f64 {
+        self.nearest_sample(i, y).1
+    }
     /// The `k` samples of candidate `i` nearest to `y` (all when `k` is `None`), sorted by
     /// (squared distance, sample index), written into `out` (cleared first).
     fn nearest_samples(
@@ -101,6 +106,14 @@ pub struct ChamferOptions {
     pub beta: Option<usize>,
     /// `d_cap` (squared distance): cost of a point that no existing candidate explains.
     pub cap: f64,
+    /// Measure `d_i(y)` of the `existence` model (and the β ranking) to the candidate's
+    /// continuous surface instead of its nearest sample.
+    ///
+    /// With sample distances, a second candidate overlapping the same surface lowers the
+    /// point term (its samples interleave with the first one's), so the loss rewards
+    /// redundant copies; surface distances remove that artefact. The fitter turns this on;
+    /// the default (off) is DESIGN §2's sample-based definition.
+    pub surface_distance: bool,
     /// Weight of the primitive term.
     pub primitive_weight: f64,
     /// Weight of the point term.
@@ -114,6 +127,7 @@ impl Default for ChamferOptions {
             alpha: None,
             beta: None,
             cap: 0.0,
+            surface_distance: false,
             primitive_weight: 1.0,
             point_weight: 1.0,
         }
@@ -367,8 +381,12 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
         let beta = self.options.beta.unwrap_or(usize::MAX);
         self.near.clear();
         if beta >= n {
-            self.near
-                .extend((0..n).map(|i| (i as u32, self.geometry.nearest_sample(i, y).1)));
+            self.near.extend((0..n).map(|i| {
+                (
+                    i as u32,
+                    candidate_distance(self.geometry, self.options, i, y),
+                )
+            }));
         } else {
             self.expanding_search(y, beta);
         }
@@ -377,6 +395,12 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             self.near.select_nth_unstable_by(beta - 1, by_distance);
             self.near.truncate(beta);
         }
+    }
+
+    /// `d_i(y)`: squared distance to candidate `i`'s nearest sample or surface.
+    #[inline]
+    fn distance(&self, i: usize, y: &Point3<f64>) -> f64 {
+        candidate_distance(self.geometry, self.options, i, y)
     }
 
     /// Grows a search radius ρ until at least β candidates have their nearest sample
@@ -389,8 +413,7 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             let reach = rho + c.max_radius;
             self.near.clear();
             for (i, _) in c.index.within(y, reach * reach) {
-                self.near
-                    .push((i, self.geometry.nearest_sample(i as usize, y).1));
+                self.near.push((i, self.distance(i as usize, y)));
             }
             let inside = self.near.iter().filter(|r| r.1 <= rho * rho).count();
             let everything = self.near.len() == self.geometry.len();
@@ -399,13 +422,33 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
                     // Past the whole extent: every candidate is within reach.
                     self.near.clear();
                     let n = self.geometry.len();
-                    self.near
-                        .extend((0..n).map(|i| (i as u32, self.geometry.nearest_sample(i, y).1)));
+                    self.near.extend((0..n).map(|i| {
+                        (
+                            i as u32,
+                            candidate_distance(self.geometry, self.options, i, y),
+                        )
+                    }));
                 }
                 return;
             }
             rho *= 2.0;
         }
+    }
+}
+
+/// `d_i(y)` of the point term: squared distance from `y` to candidate `i`'s nearest sample,
+/// or to its surface with [`ChamferOptions::surface_distance`].
+#[inline]
+fn candidate_distance(
+    geometry: &impl CandidateGeometry,
+    options: &ChamferOptions,
+    i: usize,
+    y: &Point3<f64>,
+) -> f64 {
+    if options.surface_distance {
+        geometry.surface_distance(i, y)
+    } else {
+        geometry.nearest_sample(i, y).1
     }
 }
 

@@ -21,9 +21,9 @@ use nalgebra::{Point3, UnitQuaternion};
 use serde_json::{Value, json};
 
 use crate::atlas::{MeshShape, Shape, ShapeKind, TriMesh};
-use crate::chamfer::{ChamferOptions, Coefficients, PointModel};
+use crate::chamfer::{ChamferOptions, Coefficients, Evaluator, LossValue, PointModel};
 use crate::lattice::{CandidateSet, LatticeSpec};
-use crate::progress::Progress;
+use crate::progress::{Progress, Silent};
 use crate::solve::{Solution, SolverOptions, solve};
 use crate::spatial::{PointIndex, median_spacing};
 use crate::{Error, PointCloud, Primitive, Result};
@@ -199,6 +199,7 @@ impl Settings {
             },
             beta: limit(o.beta, 16),
             cap: cap * cap,
+            surface_distance: o.model == PointModel::Existence,
             primitive_weight: o.primitive_weight.unwrap_or(1.0),
             point_weight: o.point_weight.unwrap_or(1.0),
         };
@@ -383,6 +384,25 @@ pub fn estimate_bytes(
             PointModel::Independent => chamfer.alpha.unwrap_or(max_samples).min(max_samples) as u64,
         };
     points as u64 * (per_point * Coefficients::BYTES_PER_ENTRY as u64 + 8)
+}
+
+/// The exact binary chamfer of a primitive set against `cloud` under `settings` (samples
+/// at `settings.sample_spacing`, all primitives existing, no α/β truncation):
+/// `w_prim Σ_i g_i + w_point Σ_y min_i d_i(y)`, or `d_cap` per point for an empty set.
+/// Used to compare a fit with a ground truth on the fitter's own terms.
+pub fn binary_chamfer(
+    cloud: &PointCloud,
+    primitives: &[Primitive],
+    settings: &Settings,
+) -> Result<LossValue> {
+    let set = CandidateSet::from_primitives(primitives, settings.sample_spacing)?;
+    let options = ChamferOptions {
+        alpha: None,
+        beta: None,
+        ..settings.chamfer.clone()
+    };
+    let coeffs = Coefficients::build(&cloud.points, &set, &options, &Silent)?;
+    Ok(Evaluator::new(&coeffs).binary_value(&vec![true; set.len()]))
 }
 
 /// Fits primitives to `cloud`.

@@ -152,6 +152,29 @@ impl CandidateSet {
         })
     }
 
+    /// A set holding exactly `primitives` (one template per distinct shape, samples at
+    /// `sample_spacing`), e.g. to score a ground truth with the fitter's loss.
+    pub fn from_primitives(primitives: &[Primitive], sample_spacing: f64) -> Result<Self> {
+        let mut templates: Vec<Template> = Vec::new();
+        let mut template_of = Vec::with_capacity(primitives.len());
+        for p in primitives {
+            p.shape.validate()?;
+            let same = |t: &Template| {
+                t.shape.sizes_json() == p.shape.sizes_json() && t.shape.kind() == p.shape.kind()
+            };
+            let t = match templates.iter().position(same) {
+                Some(t) => t,
+                None => {
+                    templates.push(Template::new(p.shape.clone(), sample_spacing));
+                    templates.len() - 1
+                }
+            };
+            template_of.push(t as u32);
+        }
+        let poses = primitives.iter().map(|p| p.pose).collect();
+        Self::from_parts(templates, template_of, poses)
+    }
+
     /// Builds the lattice of `spec` around `cloud`, keeping a candidate only when input
     /// points occupy a lattice cell within its reach (its bounding radius plus half a cell
     /// diagonal) — the occupancy prior of thesis §6.
@@ -250,6 +273,12 @@ impl CandidateGeometry for CandidateSet {
             .nearest(&local)
             .unwrap_or((0, f64::INFINITY));
         (k, d2 * pose.scale * pose.scale)
+    }
+    #[inline]
+    fn surface_distance(&self, i: usize, y: &Point3<f64>) -> f64 {
+        let pose = &self.poses[i];
+        let d = self.template(i).shape.distance(&pose.to_local(y)) * pose.scale;
+        d * d
     }
     fn nearest_samples(
         &self,
@@ -422,6 +451,45 @@ mod tests {
             assert!((all[0].1 - brute).abs() < 1e-12);
             assert_eq!(all.len(), buf.len());
         }
+    }
+
+    #[test]
+    fn surface_distances_remove_the_reward_for_redundant_copies() {
+        use crate::chamfer::{ChamferOptions, Coefficients, Evaluator};
+        use crate::progress::Silent;
+        // A dense patch on z = 0 and two candidates covering it: the square at the origin
+        // and a copy shifted by less than the sample spacing.
+        let pts: Vec<Point3<f64>> = (0..20)
+            .flat_map(|i| {
+                (0..20).map(move |j| {
+                    Point3::new(i as f64 * 0.05 - 0.475, j as f64 * 0.05 - 0.475, 0.0)
+                })
+            })
+            .collect();
+        let cloud = PointCloud::from_points(pts);
+        let template = Template::new(Shape::Square { side: 1.0 }, 0.1);
+        let poses = vec![
+            Pose::identity(),
+            Pose::new(UnitQuaternion::identity(), Vector3::new(0.025, 0.025, 0.0)),
+        ];
+        let set = CandidateSet::from_parts(vec![template], vec![0, 0], poses).unwrap();
+        let loss = |surface_distance: bool, exists: &[bool]| {
+            let o = ChamferOptions {
+                cap: 0.01,
+                surface_distance,
+                ..Default::default()
+            };
+            let c = Coefficients::build(&cloud.points, &set, &o, &Silent).unwrap();
+            Evaluator::new(&c).binary_value(exists).point
+        };
+        // With sample distances the copy lowers the point term (its samples interleave)…
+        assert!(loss(false, &[true, true]) < loss(false, &[true, false]) - 1e-6);
+        // …with surface distances it explains nothing new.
+        assert!((loss(true, &[true, true]) - loss(true, &[true, false])).abs() < 1e-12);
+        // And the surface distance is the exact one.
+        let y = Point3::new(0.7, 0.2, 0.3);
+        let exact = set.primitive(1).distance(&y);
+        assert!((set.surface_distance(1, &y) - exact * exact).abs() < 1e-12);
     }
 
     #[test]

@@ -70,13 +70,18 @@ impl Pose {
         let q = numbers(v.get("rotation"), 4, "pose.rotation")?;
         let quaternion = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
         if !(quaternion.norm() > 1e-12) {
-            return Err(Error::invalid("pose.rotation must be a non-zero quaternion [w, x, y, z]"));
+            return Err(Error::invalid(
+                "pose.rotation must be a non-zero quaternion [w, x, y, z]",
+            ));
         }
         let scale = match v.get("scale") {
             None | Some(Value::Null) => 1.0,
-            Some(s) => s.as_f64().filter(|s| s.is_finite() && *s > 0.0).ok_or_else(|| {
-                Error::invalid(format!("pose.scale must be a positive number, got {s}"))
-            })?,
+            Some(s) => s
+                .as_f64()
+                .filter(|s| s.is_finite() && *s > 0.0)
+                .ok_or_else(|| {
+                    Error::invalid(format!("pose.scale must be a positive number, got {s}"))
+                })?,
         };
         Ok(Pose {
             rotation: UnitQuaternion::from_quaternion(quaternion),
@@ -153,7 +158,10 @@ impl Primitive {
     }
     /// Parses one DESIGN §3 primitive entry. `load_mesh` turns a mesh entry's `source`
     /// into its mesh (e.g. by reading the PLY file it names).
-    pub fn from_json(v: &Value, load_mesh: &dyn Fn(&str) -> Result<MeshShape>) -> Result<Primitive> {
+    pub fn from_json(
+        v: &Value,
+        load_mesh: &dyn Fn(&str) -> Result<MeshShape>,
+    ) -> Result<Primitive> {
         let kind = v
             .get("type")
             .and_then(Value::as_str)
@@ -161,16 +169,26 @@ impl Primitive {
         let kind = ShapeKind::parse(kind)?;
         let size = v.get("size").cloned().unwrap_or(Value::Null);
         let get = |key: &str| -> Result<f64> {
-            size.get(key).and_then(Value::as_f64).ok_or_else(|| {
-                Error::invalid(format!("{kind} entry needs a numeric size.{key}"))
-            })
+            size.get(key)
+                .and_then(Value::as_f64)
+                .ok_or_else(|| Error::invalid(format!("{kind} entry needs a numeric size.{key}")))
         };
         let shape = match kind {
             ShapeKind::Square => Shape::Square { side: get("side")? },
-            ShapeKind::Disk => Shape::Disk { diameter: get("diameter")? },
-            ShapeKind::Sphere => Shape::Sphere { diameter: get("diameter")? },
-            ShapeKind::Cylinder => Shape::Cylinder { length: get("length")?, radius: get("radius")? },
-            ShapeKind::Elbow => Shape::Elbow { bend: get("bend")?, radius: get("radius")? },
+            ShapeKind::Disk => Shape::Disk {
+                diameter: get("diameter")?,
+            },
+            ShapeKind::Sphere => Shape::Sphere {
+                diameter: get("diameter")?,
+            },
+            ShapeKind::Cylinder => Shape::Cylinder {
+                length: get("length")?,
+                radius: get("radius")?,
+            },
+            ShapeKind::Elbow => Shape::Elbow {
+                bend: get("bend")?,
+                radius: get("radius")?,
+            },
             ShapeKind::Mesh => {
                 let source = size.get("source").and_then(Value::as_str).ok_or_else(|| {
                     Error::invalid("mesh entry needs size.source naming its PLY file")
@@ -191,10 +209,18 @@ impl Primitive {
 
 /// `n` finite numbers from a JSON array.
 fn numbers(v: Option<&Value>, n: usize, what: &str) -> Result<Vec<f64>> {
-    let arr = v.and_then(Value::as_array).ok_or_else(|| Error::invalid(format!("{what} must be an array of {n} numbers")))?;
-    let out: Vec<f64> = arr.iter().filter_map(Value::as_f64).filter(|x| x.is_finite()).collect();
+    let arr = v
+        .and_then(Value::as_array)
+        .ok_or_else(|| Error::invalid(format!("{what} must be an array of {n} numbers")))?;
+    let out: Vec<f64> = arr
+        .iter()
+        .filter_map(Value::as_f64)
+        .filter(|x| x.is_finite())
+        .collect();
     if arr.len() != n || out.len() != n {
-        return Err(Error::invalid(format!("{what} must be an array of {n} finite numbers")));
+        return Err(Error::invalid(format!(
+            "{what} must be an array of {n} finite numbers"
+        )));
     }
     Ok(out)
 }
@@ -214,15 +240,24 @@ mod tests {
             Shape::Square { side: 1.0 },
             Shape::Disk { diameter: 0.7 },
             Shape::Sphere { diameter: 0.3 },
-            Shape::Cylinder { length: 2.0, radius: 0.1 },
-            Shape::Elbow { bend: 0.5, radius: 0.1 },
+            Shape::Cylinder {
+                length: 2.0,
+                radius: 0.1,
+            },
+            Shape::Elbow {
+                bend: 0.5,
+                radius: 0.1,
+            },
         ] {
             let p = Primitive::new(shape, pose);
             let back = Primitive::from_json(&p.to_json(), &|_| unreachable!()).unwrap();
             let (a, b) = (back.to_json(), p.to_json());
             assert_eq!((&a["type"], &a["size"]), (&b["type"], &b["size"]));
             assert!(back.pose.rotation.angle_to(&p.pose.rotation) < 1e-12);
-            assert_eq!((back.pose.translation, back.pose.scale), (p.pose.translation, p.pose.scale));
+            assert_eq!(
+                (back.pose.translation, back.pose.scale),
+                (p.pose.translation, p.pose.scale)
+            );
             let x = Point3::new(0.3, 0.2, -0.1);
             assert!((back.distance(&x) - p.distance(&x)).abs() < 1e-12);
         }

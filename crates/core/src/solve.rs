@@ -76,7 +76,7 @@ impl Default for SolverOptions {
             parameterization: Parameterization::Box,
             max_iterations: 200,
             memory: 10,
-            ftol: 1e-9,
+            ftol: 1e-6,
             pgtol: 1e-7,
             initial: 0.5,
             threshold: 0.5,
@@ -368,81 +368,160 @@ pub fn lbfgs(
     }
 }
 
-/// Greedy single-candidate flips on the binary scene `exists`, each applied only if the
-/// binary chamfer (same entries, same cap) decreases — or, for a removal, does not
-/// increase, so redundant duplicates are dropped. Candidates are visited in ascending
-/// continuous probability; sweeps repeat until nothing changes. Returns the flip count.
+/// Discrete polish of the binary scene `exists` on the binary chamfer (same entries, same
+/// cap). Two moves, repeated in sweeps until neither changes anything:
 ///
-/// Incremental: each point keeps its current cost (the nearest existing entry, or
-/// `d_cap`) and owner; a flip only rescans the rows where the candidate has entries.
+/// 1. **single flips**: remove a candidate if the loss does not increase (so redundant
+///    copies go), add one if it strictly decreases;
+/// 2. **add and prune**: add a candidate, then remove every neighbour it made redundant
+///    (a current owner of one of its rows whose removal no longer costs anything); keep
+///    the whole move only if the total strictly decreases. This turns an overlapping
+///    tiling into a cleaner one, which single flips cannot.
+///
+/// Candidates are visited in ascending continuous probability. Incremental: each point
+/// keeps its current cost (nearest existing entry, or `d_cap`) and owner; a move only
+/// rescans rows where the moved candidates have entries. Returns the number of flips.
 pub fn polish(
     coeffs: &Coefficients,
     probability: &[f64],
     exists: &mut [bool],
     max_sweeps: usize,
 ) -> usize {
-    let n = coeffs.candidates();
-    let (wp, wq) = (coeffs.options.primitive_weight, coeffs.options.point_weight);
-    let cap = coeffs.options.cap;
-    let rows = transpose(coeffs);
-    let mut owner = vec![u32::MAX; coeffs.points()];
-    let mut cost = vec![cap; coeffs.points()];
-    for j in 0..coeffs.points() {
-        (owner[j], cost[j]) = first_existing(coeffs, j, exists, u32::MAX);
-    }
-    let mut order: Vec<usize> = (0..n).collect();
+    let mut state = PolishState::new(coeffs, exists);
+    let mut order: Vec<usize> = (0..coeffs.candidates()).collect();
     order.sort_by(|&a, &b| probability[a].total_cmp(&probability[b]).then(a.cmp(&b)));
-    let scale = 1e-12
-        * (coeffs.g.iter().sum::<f64>() * wp + cost.iter().sum::<f64>() * wq)
-            .abs()
-            .max(1e-300);
     let mut flips = 0;
     for _ in 0..max_sweeps {
-        let mut changed = false;
+        let before = flips;
         for &i in &order {
-            let list = &rows[i];
-            if exists[i] {
-                let mut delta = -wp * coeffs.g[i];
-                for &(j, _) in list {
-                    if owner[j as usize] == i as u32 {
-                        let (_, next) = first_existing(coeffs, j as usize, exists, i as u32);
-                        delta += wq * (next - cost[j as usize]);
-                    }
-                }
-                if delta <= scale {
-                    exists[i] = false;
-                    for &(j, _) in list {
-                        if owner[j as usize] == i as u32 {
-                            (owner[j as usize], cost[j as usize]) =
-                                first_existing(coeffs, j as usize, exists, u32::MAX);
-                        }
-                    }
-                    flips += 1;
-                    changed = true;
-                }
-            } else {
-                let mut delta = wp * coeffs.g[i];
-                for &(j, d) in list {
-                    delta += wq * (d - cost[j as usize]).min(0.0);
-                }
-                if delta < -scale {
-                    exists[i] = true;
-                    for &(j, d) in list {
-                        if d < cost[j as usize] {
-                            cost[j as usize] = d;
-                            owner[j as usize] = i as u32;
-                        }
-                    }
-                    flips += 1;
-                    changed = true;
-                }
+            let delta = state.flip_delta(i);
+            if (state.exists[i] && delta <= state.tolerance)
+                || (!state.exists[i] && delta < -state.tolerance)
+            {
+                state.flip(i);
+                flips += 1;
             }
         }
-        if !changed {
+        for &i in &order {
+            if !state.exists[i] {
+                flips += state.add_and_prune(i);
+            }
+        }
+        if flips == before {
             break;
         }
     }
+    exists.copy_from_slice(&state.exists);
     flips
+}
+
+/// The binary scene and each point's current explanation, for [`polish`].
+struct PolishState<'c> {
+    coeffs: &'c Coefficients,
+    rows: Vec<Vec<(u32, f64)>>,
+    exists: Vec<bool>,
+    owner: Vec<u32>,
+    cost: Vec<f64>,
+    tolerance: f64,
+}
+
+impl<'c> PolishState<'c> {
+    fn new(coeffs: &'c Coefficients, exists: &[bool]) -> Self {
+        let j = coeffs.points();
+        let mut s = PolishState {
+            coeffs,
+            rows: transpose(coeffs),
+            exists: exists.to_vec(),
+            owner: vec![u32::MAX; j],
+            cost: vec![coeffs.options.cap; j],
+            tolerance: 0.0,
+        };
+        for row in 0..j {
+            (s.owner[row], s.cost[row]) = first_existing(coeffs, row, &s.exists, u32::MAX);
+        }
+        let o = &coeffs.options;
+        let scale = coeffs.g.iter().sum::<f64>() * o.primitive_weight
+            + s.cost.iter().sum::<f64>() * o.point_weight;
+        s.tolerance = 1e-12 * scale.abs().max(1e-300);
+        s
+    }
+
+    /// Change of the binary loss if candidate `i` flipped.
+    fn flip_delta(&self, i: usize) -> f64 {
+        let (wp, wq) = (
+            self.coeffs.options.primitive_weight,
+            self.coeffs.options.point_weight,
+        );
+        let mut delta = 0.0;
+        if self.exists[i] {
+            for &(j, _) in &self.rows[i] {
+                let j = j as usize;
+                if self.owner[j] == i as u32 {
+                    delta +=
+                        first_existing(self.coeffs, j, &self.exists, i as u32).1 - self.cost[j];
+                }
+            }
+            wq * delta - wp * self.coeffs.g[i]
+        } else {
+            for &(j, d) in &self.rows[i] {
+                delta += (d - self.cost[j as usize]).min(0.0);
+            }
+            wq * delta + wp * self.coeffs.g[i]
+        }
+    }
+
+    /// Flips candidate `i` and updates the points it touches.
+    fn flip(&mut self, i: usize) {
+        self.exists[i] = !self.exists[i];
+        for &(j, d) in &self.rows[i] {
+            let j = j as usize;
+            if self.exists[i] && d < self.cost[j] {
+                (self.owner[j], self.cost[j]) = (i as u32, d);
+            } else if !self.exists[i] && self.owner[j] == i as u32 {
+                (self.owner[j], self.cost[j]) =
+                    first_existing(self.coeffs, j, &self.exists, u32::MAX);
+            }
+        }
+    }
+
+    /// The compound move of [`polish`]; returns the number of flips kept (0 if reverted).
+    fn add_and_prune(&mut self, i: usize) -> usize {
+        let mut gain: f64 = self.rows[i]
+            .iter()
+            .map(|&(j, d)| (d - self.cost[j as usize]).min(0.0))
+            .sum();
+        if gain >= 0.0 {
+            return 0; // explains nothing better: cannot help
+        }
+        let mut displaced: Vec<u32> = self.rows[i]
+            .iter()
+            .filter(|&&(j, d)| d < self.cost[j as usize] && self.owner[j as usize] != u32::MAX)
+            .map(|&(j, _)| self.owner[j as usize])
+            .collect();
+        displaced.sort_unstable();
+        displaced.dedup();
+        gain = self.flip_delta(i);
+        self.flip(i);
+        let mut removed = Vec::new();
+        for &k in &displaced {
+            let k = k as usize;
+            let delta = self.flip_delta(k);
+            if delta <= self.tolerance {
+                gain += delta;
+                self.flip(k);
+                removed.push(k);
+            }
+        }
+        if gain < -self.tolerance {
+            1 + removed.len()
+        } else {
+            for &k in removed.iter().rev() {
+                self.flip(k);
+            }
+            self.flip(i);
+            0
+        }
+    }
 }
 
 /// For each candidate, the rows (points) where it has entries, with its smallest distance there.

@@ -90,7 +90,11 @@ pub struct FitArgs {
 impl FitArgs {
     /// Translates the flags into library options.
     fn options(&self) -> Result<FitOptions> {
-        let kinds = self.types.iter().map(|t| ShapeKind::parse(t)).collect::<Result<Vec<_>, _>>()?;
+        let kinds = self
+            .types
+            .iter()
+            .map(|t| ShapeKind::parse(t))
+            .collect::<Result<Vec<_>, _>>()?;
         if kinds.is_empty() {
             bail!("--types needs at least one primitive type");
         }
@@ -151,9 +155,14 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
         bail!("{}: the cloud has no points", args.scene.display());
     }
     let bars = Bars::new(out.quiet, out.verbose);
-    let result = fit(&cloud, &options, &bars).with_context(|| format!("fitting {}", args.scene.display()))?;
+    let result = fit(&cloud, &options, &bars)
+        .with_context(|| format!("fitting {}", args.scene.display()))?;
     let metrics = super::eval::measure(&cloud, &result.primitives, None);
-    let encoding = if args.ascii { Encoding::Ascii } else { Encoding::BinaryLittleEndian };
+    let encoding = if args.ascii {
+        Encoding::Ascii
+    } else {
+        Encoding::BinaryLittleEndian
+    };
     if let Some(path) = &args.output {
         let mut doc = result.to_json(metrics.to_json());
         doc["settings"]["scene"] = args.scene.display().to_string().into();
@@ -185,7 +194,11 @@ fn print_summary(
         args.scene.display(),
         r.stats.points,
         r.primitives.len(),
-        if kinds.is_empty() { "none".into() } else { kinds.join(", ") },
+        if kinds.is_empty() {
+            "none".into()
+        } else {
+            kinds.join(", ")
+        },
         r.stats.candidates
     );
     println!(

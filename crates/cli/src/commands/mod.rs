@@ -15,7 +15,11 @@ pub struct Output {
 
 /// Parses a comma-separated list of three numbers (`x,y,z`).
 pub fn parse_point(s: &str) -> Result<[f64; 3], String> {
-    let v: Vec<f64> = s.split(',').map(|t| t.trim().parse::<f64>()).collect::<Result<_, _>>().map_err(|e| e.to_string())?;
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| e.to_string())?;
     match v[..] {
         [x, y, z] if v.iter().all(|c| c.is_finite()) => Ok([x, y, z]),
         _ => Err(format!("expected three finite numbers x,y,z, got {s:?}")),

@@ -206,6 +206,7 @@ fn gradients_match_central_differences() {
                     alpha,
                     beta,
                     cap: 0.7,
+                    surface_distance: false,
                     primitive_weight: 0.5,
                     point_weight: 2.0,
                 };

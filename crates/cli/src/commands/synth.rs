@@ -1,0 +1,233 @@
+//! `primfit synth`: synthetic scenes with ground truth.
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::{Args, ValueEnum};
+use primfit_core::atlas::MeshShape;
+use primfit_core::fit::result_json;
+use primfit_core::io::{self, Encoding};
+use primfit_core::synth::{self, Density, Misalignment, Noise, Scene};
+use serde_json::json;
+
+use super::Output;
+
+/// Scene kinds.
+#[derive(Debug, Clone, Copy, ValueEnum)]
+pub enum Kind {
+    /// Floor, two walls and an optional ceiling tiled by squares (thesis §6.3.2).
+    Hallway,
+    /// A random chain of straight cylinders and right-angle elbows (thesis §6.3.1).
+    Pipe,
+    /// A subset of nine vertical cylinders on a 3×3 grid (thesis §5.5).
+    NineCylinders,
+    /// Six candidates in a row in front of a sensor, points on the fourth (thesis §4.3).
+    SixInARow,
+    /// A posed mesh drowned in uniform outliers (thesis §6.3.3).
+    Registration,
+}
+
+/// Arguments of `primfit synth`.
+#[derive(Debug, Args)]
+pub struct SynthArgs {
+    /// The scene to generate.
+    #[arg(value_enum)]
+    pub kind: Kind,
+    /// Output cloud (PLY).
+    #[arg(short, long, value_name = "scene.ply")]
+    pub output: PathBuf,
+    /// Also write the true primitives as result JSON.
+    #[arg(long, value_name = "truth.json")]
+    pub truth: Option<PathBuf>,
+    /// Write the PLY as ascii.
+    #[arg(long)]
+    pub ascii: bool,
+    /// Random seed.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Per-point Gaussian noise σ (scene units) [default: per scene].
+    #[arg(long)]
+    pub jitter: Option<f64>,
+    /// Per-primitive Gaussian offset σ (scene units).
+    #[arg(long, default_value_t = 0.0)]
+    pub drift: f64,
+    /// Largest random shift against the lattice, as a fraction of its spacing
+    /// (nine-cylinders: of the grid pitch).
+    #[arg(long, default_value_t = 0.0)]
+    pub offset: f64,
+    /// Largest random rotation against the lattice, degrees.
+    #[arg(long, default_value_t = 0.0)]
+    pub angle: f64,
+    /// Total number of points [default: from a per-scene density].
+    #[arg(long)]
+    pub points: Option<usize>,
+    /// Hallway square side, pipe segment length [default: 1].
+    #[arg(long)]
+    pub size: Option<f64>,
+    /// Pipe / cylinder radius.
+    #[arg(long)]
+    pub radius: Option<f64>,
+    /// Pipe elbow bend radius [default: size / 2].
+    #[arg(long)]
+    pub bend: Option<f64>,
+    /// Hallway length [default: 10].
+    #[arg(long)]
+    pub length: Option<f64>,
+    /// Hallway width [default: 2].
+    #[arg(long)]
+    pub width: Option<f64>,
+    /// Hallway wall height [default: 2.5].
+    #[arg(long)]
+    pub height: Option<f64>,
+    /// Hallway with a ceiling.
+    #[arg(long)]
+    pub ceiling: bool,
+    /// Pipe: number of straight runs.
+    #[arg(long)]
+    pub segments: Option<usize>,
+    /// Nine cylinders: which of the nine exist, as a 9-bit mask (0..=511).
+    #[arg(long, default_value_t = 0b1_1111_1111)]
+    pub mask: u16,
+    /// Registration: the object mesh (PLY with faces) [default: a built-in asymmetric object].
+    #[arg(long, value_name = "object.ply")]
+    pub model: Option<PathBuf>,
+    /// Registration: points on the object.
+    #[arg(long, default_value_t = 100)]
+    pub inliers: usize,
+    /// Registration: uniform outliers.
+    #[arg(long, default_value_t = 1900)]
+    pub outliers: usize,
+}
+
+fn density(points: Option<usize>, default: Density) -> Density {
+    points.map_or(default, Density::Total)
+}
+
+/// Runs `primfit synth`.
+pub fn run(a: SynthArgs, out: &Output) -> Result<()> {
+    let noise = |default_jitter: f64| Noise {
+        jitter: a.jitter.unwrap_or(default_jitter),
+        drift: a.drift,
+    };
+    let misalignment = Misalignment {
+        offset: a.offset,
+        angle: a.angle.to_radians(),
+    };
+    let (scene, extra) = match a.kind {
+        Kind::Hallway => {
+            let d = synth::HallwayParams::default();
+            let p = synth::HallwayParams {
+                length: a.length.unwrap_or(d.length),
+                width: a.width.unwrap_or(d.width),
+                height: a.height.unwrap_or(d.height),
+                side: a.size.unwrap_or(d.side),
+                ceiling: a.ceiling,
+                density: density(a.points, d.density),
+                noise: noise(d.noise.jitter),
+                misalignment,
+                seed: a.seed,
+            };
+            (synth::hallway(&p)?, json!({}))
+        }
+        Kind::Pipe => {
+            let d = synth::PipeParams::default();
+            let p = synth::PipeParams {
+                segments: a.segments.unwrap_or(d.segments),
+                segment_length: a.size.unwrap_or(d.segment_length),
+                bend: a.bend.or(d.bend),
+                radius: a.radius.or(d.radius),
+                density: density(a.points, d.density),
+                noise: noise(d.noise.jitter),
+                misalignment,
+                seed: a.seed,
+                ..d
+            };
+            (synth::pipe(&p)?, json!({}))
+        }
+        Kind::NineCylinders => {
+            if a.mask > 511 {
+                bail!("--mask must be in 0..=511, got {}", a.mask);
+            }
+            let d = synth::NineCylinderParams::default();
+            let p = synth::NineCylinderParams {
+                mask: a.mask,
+                radius: a.radius.unwrap_or(d.radius),
+                density: density(a.points, d.density),
+                noise: noise(d.noise.jitter),
+                offset: a.offset,
+                seed: a.seed,
+                ..d
+            };
+            (synth::nine_cylinders(&p)?, json!({ "mask": a.mask }))
+        }
+        Kind::SixInARow => {
+            let d = synth::SixInARowParams::default();
+            let p = synth::SixInARowParams {
+                points: a.points.unwrap_or(d.points),
+                jitter: a.jitter.unwrap_or(d.jitter),
+                seed: a.seed,
+                ..d
+            };
+            let six = synth::six_in_a_row(&p)?;
+            (six.scene, json!({ "true_index": six.true_index }))
+        }
+        Kind::Registration => {
+            let mesh = match &a.model {
+                Some(path) => MeshShape::new(path.display().to_string(), io::read_mesh(path)?)?,
+                None => synth::asymmetric_object(),
+            };
+            let d = synth::RegistrationParams::default();
+            let p = synth::RegistrationParams {
+                inliers: a.inliers,
+                outliers: a.outliers,
+                noise: noise(d.noise.jitter),
+                seed: a.seed,
+                ..d
+            };
+            (
+                synth::registration(&mesh, &p)?,
+                json!({ "inliers": a.inliers, "outliers": a.outliers }),
+            )
+        }
+    };
+    write(&a, &scene, extra)?;
+    if !out.quiet {
+        println!(
+            "{}: {} points, {} true primitives (lattice spacing {}); wrote {}",
+            a.kind
+                .to_possible_value()
+                .map_or("scene".into(), |v| v.get_name().to_string()),
+            scene.cloud.len(),
+            scene.truth.len(),
+            scene.lattice.spacing,
+            a.output.display()
+        );
+    }
+    Ok(())
+}
+
+fn write(a: &SynthArgs, scene: &Scene, extra: serde_json::Value) -> Result<()> {
+    let encoding = if a.ascii {
+        Encoding::Ascii
+    } else {
+        Encoding::BinaryLittleEndian
+    };
+    if let Some(path) = &a.truth {
+        let h = &scene.lattice;
+        let settings = json!({
+            "kind": a.kind.to_possible_value().map(|v| v.get_name().to_string()),
+            "seed": a.seed,
+            "jitter": a.jitter,
+            "drift": a.drift,
+            "offset": a.offset,
+            "angle_degrees": a.angle,
+            "lattice": { "spacing": h.spacing, "origin": [h.origin.x, h.origin.y, h.origin.z] },
+            "scene": extra,
+        });
+        let existence = vec![1.0; scene.truth.len()];
+        let doc = result_json(settings, json!({}), &scene.truth, &existence);
+        io::write_json_atomic(path, &doc).context("writing the truth")?;
+    }
+    io::write_cloud(&a.output, &scene.cloud, encoding)?;
+    Ok(())
+}
