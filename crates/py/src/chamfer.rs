@@ -26,6 +26,12 @@ fn exact_if_unlimited(v: Option<usize>) -> Option<usize> {
     v.filter(|&k| k != usize::MAX)
 }
 
+impl From<Coefficients> for ChamferProblem {
+    fn from(coeffs: Coefficients) -> Self {
+        ChamferProblem { coeffs }
+    }
+}
+
 #[pymethods]
 impl ChamferProblem {
     #[new]
@@ -57,6 +63,8 @@ impl ChamferProblem {
             alpha: exact_if_unlimited(convert::limit("alpha", alpha)?),
             beta: exact_if_unlimited(convert::limit("beta", beta)?),
             cap,
+            // Explicit samples carry no surface: distances are to the nearest sample.
+            surface_distance: false,
             primitive_weight: weights.0,
             point_weight: weights.1,
         };

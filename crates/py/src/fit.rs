@@ -3,7 +3,7 @@
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
 use primfit_core::atlas::{MeshShape, ShapeKind};
-use primfit_core::chamfer::{CandidateGeometry, PointModel};
+use primfit_core::chamfer::{CandidateGeometry, Coefficients, PointModel};
 use primfit_core::fit::{self as core_fit, FitOptions, Settings};
 use primfit_core::lattice::CandidateSet;
 use primfit_core::metrics::{self, MetricsOptions};
@@ -15,6 +15,7 @@ use primfit_core::{PointCloud, Result};
 use pyo3::exceptions::PyRuntimeError;
 use pyo3::prelude::*;
 
+use crate::chamfer::ChamferProblem;
 use crate::convert::{self, ToPyResult};
 use crate::pool;
 use crate::synth::points_array;
@@ -163,4 +164,23 @@ pub fn candidates<'py>(
         owner.into_pyarray(py),
         json_text(&primitives)?,
     ))
+}
+
+/// The loss a fit of `cloud` with `options` minimises, over the same candidates and with
+/// the same settings (model, alpha, beta, cap, weights, surface distances).
+#[pyfunction]
+pub fn fit_problem(
+    py: Python<'_>,
+    cloud: PyReadonlyArray2<'_, f64>,
+    options: &PyFitOptions,
+) -> PyResult<ChamferProblem> {
+    let cloud = PointCloud::from_points(convert::points("cloud", &cloud, false)?);
+    let coeffs = pool::detached(py, || -> Result<_> {
+        let index = PointIndex::new(&cloud.points);
+        let settings = Settings::resolve(&cloud, &index, &options.0)?;
+        let set = CandidateSet::build(&settings.lattice(), &cloud)?;
+        Coefficients::build(&cloud.points, &set, &settings.chamfer, &Silent)
+    })?
+    .py()?;
+    Ok(coeffs.into())
 }

@@ -98,7 +98,7 @@ def test_candidates_reproduce_the_fit_loss():
     assert n > 8 and cands.samples.shape[1] == 3 and cands.owner.shape == (len(cands.samples),)
     assert set(np.unique(cands.owner)) == set(range(n))
     assert cands.settings["size"] == 1.0
-    problem = cands.problem(cloud)
+    problem = cands.problem()
     assert problem.n_candidates == n and problem.n_points == len(cloud)
 
 
@@ -108,7 +108,7 @@ def test_scipy_lbfgsb_on_our_loss_reaches_the_fit_solution():
     cloud = corner() + rng.normal(0.0, 0.005, (3200, 3))
     options = dict(size=1.0)
     cands = primfit.candidates(cloud, **options)
-    problem = cands.problem(cloud)
+    problem = cands.problem()
     w_prim, w_point = problem.weights
 
     def loss(p):

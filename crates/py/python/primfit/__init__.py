@@ -135,6 +135,12 @@ class ChamferProblem:
             weights=(float(weights[0]), float(weights[1])),
         )
 
+    @classmethod
+    def _wrap(cls, inner: _primfit.ChamferProblem) -> ChamferProblem:
+        problem = cls.__new__(cls)
+        problem._inner = inner
+        return problem
+
     @property
     def n_candidates(self) -> int:
         """Number of candidates N."""
@@ -375,23 +381,23 @@ class Candidates:
         Every setting the fit would use (sizes, ``cap`` as a distance, ``alpha``, ...).
     """
 
-    def __init__(self, settings: str, samples: np.ndarray, owner: np.ndarray, primitives: str) -> None:
+    def __init__(self, cloud: np.ndarray, options: _primfit.FitOptions) -> None:
+        settings, samples, owner, primitives = _primfit.candidates(cloud, options)
+        self._cloud, self._options = cloud, options
         self.settings: dict[str, Any] = json.loads(settings)
-        self.samples = samples
-        self.owner = owner
+        self.samples: np.ndarray = samples
+        self.owner: np.ndarray = owner
         self.primitives: list[dict[str, Any]] = json.loads(primitives)
 
     def __len__(self) -> int:
         return len(self.primitives)
 
-    def problem(self, cloud: ArrayLike) -> ChamferProblem:
-        """The :class:`ChamferProblem` of ``cloud`` over these candidates, with the
-        fit's model, alpha, beta, weights and ``d_cap = cap ** 2``."""
-        s = self.settings
-        return ChamferProblem(
-            cloud, self.samples, self.owner, len(self), model=s["model"], alpha=s["alpha"],
-            beta=s["beta"], cap=s["cap"] ** 2, weights=tuple(s["weights"]),
-        )
+    def problem(self) -> ChamferProblem:
+        """The loss the fit minimises, as a :class:`ChamferProblem` over these candidates
+        (same model, alpha, beta, cap, weights, and distances to the candidates' exact
+        surfaces where the fit uses them), built from the lattice rather than from
+        :attr:`samples`."""
+        return ChamferProblem._wrap(_primfit.fit_problem(self._cloud, self._options))
 
     def __repr__(self) -> str:
         return f"Candidates({len(self)} candidates, {len(self.samples)} samples)"
@@ -401,10 +407,9 @@ def candidates(cloud: ArrayLike, **options: Any) -> Candidates:
     """The candidates (lattice after the occupancy prior) that ``fit(cloud, **options)``
     would optimise over; ``options`` are those of :func:`fit`.
 
-    With :meth:`Candidates.problem` this reproduces a fit's loss in Python, e.g. to run
-    another optimiser on it.
+    :meth:`Candidates.problem` gives the fit's loss, e.g. to run another optimiser on it.
     """
-    return Candidates(*_primfit.candidates(_points("cloud", cloud), _fit_options(**options)))
+    return Candidates(_points("cloud", cloud), _fit_options(**options))
 
 
 def read_ply(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:

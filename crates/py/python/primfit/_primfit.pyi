@@ -15,6 +15,7 @@ __all__ = [
     "__version__",
     "candidates",
     "fit",
+    "fit_problem",
     "read_mesh",
     "read_ply",
     "synth_hallway",
@@ -87,6 +88,7 @@ class FitOptions:
 
 def fit(cloud: _F64, options: FitOptions) -> tuple[str, _F64]: ...
 def candidates(cloud: _F64, options: FitOptions) -> tuple[str, _F64, _I64, str]: ...
+def fit_problem(cloud: _F64, options: FitOptions) -> ChamferProblem: ...
 
 _Scene = tuple[_F64, str]
 
