@@ -62,14 +62,16 @@ def test_fit_result_round_trip():
 def test_fit_options_reach_the_core():
     cloud = corner()
     result = primfit.fit(
-        cloud, types="square", size=1.0, spacing=0.5, model="independent", alpha=5, beta="inf",
+        cloud, types="square", size=1.0, spacing=0.5, model="independent", alpha=5, beta=3,
         cap=0.4, weights=(1.0, 2.0), parameterization="logit", max_iterations=50, seed=7,
         origin=(0, 0, 0),
     )
     s = result.settings
-    assert (s["model"], s["alpha"], s["beta"], s["cap"]) == ("independent", 5, "inf", 0.4)
+    assert (s["model"], s["alpha"], s["beta"], s["cap"]) == ("independent", 5, 3, 0.4)
     assert (s["weights"], s["parameterization"], s["max_iterations"], s["seed"]) == ([1.0, 2.0], "logit", 50, 7)
     assert s["types"] == ["square"]
+    unlimited = primfit.fit(cloud, size=1.0, beta="inf", alpha=float("inf")).settings
+    assert (unlimited["alpha"], unlimited["beta"]) == ("inf", "inf")
 
 
 def test_fit_is_deterministic_and_float32_gives_the_same_answer():
