@@ -226,14 +226,16 @@ impl Shape {
     /// Deterministic, area-uniform samples of the surface with roughly `spacing` between
     /// neighbours (local frame, same length unit as the sizes). About `area / spacing²`
     /// points (the square uses `ceil(side / spacing)²`), never fewer than one; the same
-    /// input always gives the same points in the same order. `spacing` must be positive
-    /// and finite.
+    /// input always gives the same points in the same order. A spacing so fine (or zero,
+    /// negative, NaN) that more than [`Shape::MAX_SAMPLES`] points would result is raised
+    /// to the finest allowed one, so no argument can exhaust memory.
     ///
     /// Layouts: square, cell-centre grid; disk, sunflower spiral; cylinder, cell-centre
     /// (θ, z) grid; elbow, rows of constant tube angle with counts proportional to their
     /// band's area; sphere, Fibonacci lattice; mesh, per-face counts proportional to face
     /// area with R2 low-discrepancy points inside each face.
     pub fn sample_surface(&self, spacing: f64) -> Vec<Point3<f64>> {
+        let spacing = self.safe_spacing(spacing);
         match self {
             Shape::Disk { diameter } => disk_sample(diameter / 2.0, spacing),
             Shape::Square { side } => square_sample(*side, spacing),
@@ -241,6 +243,20 @@ impl Shape {
             Shape::Elbow { bend, radius } => elbow_sample(*bend, *radius, spacing),
             Shape::Sphere { diameter } => sphere_sample(diameter / 2.0, spacing),
             Shape::Mesh(m) => m.sample(spacing),
+        }
+    }
+
+    /// Most samples [`Shape::sample_surface`] returns (4 Mi points, 96 MiB).
+    pub const MAX_SAMPLES: f64 = (1u64 << 22) as f64;
+
+    /// `spacing` made safe to sample with: never so fine that the surface would get more
+    /// than [`Shape::MAX_SAMPLES`] samples (this also catches 0, negative and NaN spacings).
+    fn safe_spacing(&self, spacing: f64) -> f64 {
+        let finest = (self.area() / Self::MAX_SAMPLES).sqrt();
+        if spacing.is_finite() && spacing >= finest {
+            spacing
+        } else {
+            finest.max(f64::MIN_POSITIVE)
         }
     }
 

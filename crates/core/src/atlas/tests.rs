@@ -994,3 +994,17 @@ fn elbow_quarter_is_where_the_conventions_say() {
     assert!(elbow.distance(&Point3::new(-2.5, 0.0, 0.0)) > 1.0);
     assert!(elbow.distance(&Point3::new(0.0, -2.5, 0.0)) > 1.0);
 }
+
+#[test]
+fn hostile_spacings_never_explode() {
+    for shape in [Shape::Square { side: 1.0 }, Shape::Sphere { diameter: 1.0 }] {
+        for spacing in [0.0, -1.0, f64::NAN, 1e-12] {
+            let n = shape.sample_surface(spacing).len();
+            assert!(
+                n >= 1 && (n as f64) <= 1.2 * Shape::MAX_SAMPLES,
+                "{} at {spacing}: {n}",
+                shape.kind()
+            );
+        }
+    }
+}
