@@ -332,7 +332,7 @@ const MAX_CANDIDATES: f64 = (1u64 << 27) as f64;
 fn check_template_sizes(spec: &LatticeSpec) -> Result<()> {
     for s in &spec.shapes {
         let n = s.area() / (spec.sample_spacing * spec.sample_spacing);
-        if !(n <= MAX_TEMPLATE_SAMPLES) {
+        if n.is_nan() || n > MAX_TEMPLATE_SAMPLES {
             return Err(Error::TooLarge(format!(
                 "a {} of area {:.3e} sampled every {} would need about {n:.1e} samples \
                  (at most {MAX_TEMPLATE_SAMPLES:.0e}); use a coarser --sample-spacing",
@@ -354,7 +354,7 @@ fn check_grid_extent(spec: &LatticeSpec, cloud: &PointCloud) -> Result<()> {
         .map(|p| (p - spec.origin).norm())
         .fold(0.0, f64::max);
     let cells = far / spec.spacing;
-    if !(cells <= MAX_CELLS_PER_AXIS) {
+    if cells.is_nan() || cells > MAX_CELLS_PER_AXIS {
         return Err(Error::TooLarge(format!(
             "a lattice spacing of {} puts the cloud up to {cells:.1e} cells from the lattice \
              origin (at most {MAX_CELLS_PER_AXIS:.0e}); use a coarser --spacing or an --origin nearer the cloud",

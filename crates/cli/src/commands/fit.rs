@@ -160,15 +160,23 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
     }
     let options = args.options()?;
     let (cloud, report) = io::read_cloud_report(&args.scene)?;
-    if report.skipped_non_finite > 0 && !out.quiet {
-        eprintln!(
-            "warning: {}: skipped {} points with NaN/inf coordinates",
+    if cloud.is_empty() && report.skipped_non_finite > 0 {
+        bail!(
+            "{}: the cloud has no points: all {} have a NaN or infinite coordinate",
             args.scene.display(),
             report.skipped_non_finite
         );
     }
     if cloud.is_empty() {
         bail!("{}: the cloud has no points", args.scene.display());
+    }
+    if report.skipped_non_finite > 0 && !out.quiet {
+        eprintln!(
+            "warning: {}: skipped {} of {} points with a NaN or infinite coordinate",
+            args.scene.display(),
+            report.skipped_non_finite,
+            report.vertices_in_file
+        );
     }
     let bars = Bars::new(out.quiet, out.verbose);
     let result = fit(&cloud, &options, &bars)
