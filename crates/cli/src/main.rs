@@ -30,10 +30,13 @@ struct Cli {
 #[derive(Debug, Subcommand)]
 enum Command {
     /// Fit primitives to a scan (PLY) and write result JSON and/or a mesh.
+    #[command(allow_negative_numbers = true)]
     Fit(commands::fit::FitArgs),
     /// Generate a synthetic scene with ground truth.
+    #[command(allow_negative_numbers = true)]
     Synth(commands::synth::SynthArgs),
     /// Measure how well a result explains a scan (DESIGN §4 measures, as JSON).
+    #[command(allow_negative_numbers = true)]
     Eval(commands::eval::EvalArgs),
 }
 
@@ -59,9 +62,24 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            // One line, the whole cause chain, no backtrace.
-            eprintln!("error: {e:#}");
+            eprintln!("error: {}", one_line(&e));
             ExitCode::FAILURE
         }
     }
+}
+
+/// The whole cause chain on one line, without a backtrace. A cause whose text its
+/// parent already shows (library errors print their source) is not repeated.
+fn one_line(e: &anyhow::Error) -> String {
+    let mut out = String::new();
+    for cause in e.chain() {
+        let text = cause.to_string();
+        if !out.contains(&text) {
+            if !out.is_empty() {
+                out.push_str(": ");
+            }
+            out.push_str(&text);
+        }
+    }
+    out.split_whitespace().collect::<Vec<_>>().join(" ")
 }

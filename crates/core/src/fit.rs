@@ -6,7 +6,7 @@
 //! | setting | default |
 //! |---|---|
 //! | `size` | the bounding-box diagonal ÷ 8, rounded down to 1, 2 or 5 × 10^k |
-//! | `spacing` | `size / 2` (the thesis's hallway: 1 m squares on a 0.5 m lattice) |
+//! | `spacing` | `size / 2` (the thesis's hallway: 1 m squares on a 0.5 m lattice); when `mesh` is the only type, the mesh's bounding radius (as in the registration scenes) |
 //! | `radius` | `size / 10` (tube radius of cylinders and elbows) |
 //! | `bend` | `spacing` (elbow centre-line radius) |
 //! | `cap` | `spacing`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; `d_cap = cap²` |
@@ -165,7 +165,11 @@ impl Settings {
             o.kinds.clone()
         };
         let size = positive("size", o.size.unwrap_or_else(|| nice_floor(diagonal / 8.0)))?;
-        let spacing = positive("spacing", o.spacing.unwrap_or(size / 2.0))?;
+        let default_spacing = match &o.mesh {
+            Some(m) if kinds.iter().all(|k| *k == ShapeKind::Mesh) => m.bounding_radius(),
+            _ => size / 2.0,
+        };
+        let spacing = positive("spacing", o.spacing.unwrap_or(default_spacing))?;
         let radius = positive("radius", o.radius.unwrap_or(size / 10.0))?;
         let bend = positive("bend", o.bend.unwrap_or(spacing))?;
         let cap = o.cap.unwrap_or(spacing);

@@ -185,6 +185,8 @@ impl CandidateSet {
                 "cannot build a lattice around an empty cloud",
             ));
         }
+        check_template_sizes(spec)?;
+        check_grid_extent(spec, cloud)?;
         let templates: Vec<Template> = spec
             .shapes
             .par_iter()
@@ -194,11 +196,10 @@ impl CandidateSet {
         let mut template_of = Vec::new();
         let mut poses = Vec::new();
         for (t, template) in templates.iter().enumerate() {
-            let nodes = dilate(
-                &occupied,
-                template.radius / spec.spacing + 0.5 * 3f64.sqrt(),
-            );
+            let reach = template.radius / spec.spacing + 0.5 * 3f64.sqrt();
             let rotations = orientations(template.shape.kind());
+            check_dilation(spec, &template.shape, &occupied, reach, rotations.len())?;
+            let nodes = dilate(&occupied, reach);
             for node in &nodes {
                 let translation = node_position(spec, node).coords;
                 for r in &rotations {
@@ -317,6 +318,84 @@ impl CandidateGeometry for CandidateSet {
 }
 
 type Node = [i32; 3];
+
+/// The most surface samples one template may have.
+const MAX_TEMPLATE_SAMPLES: f64 = 1e7;
+/// The most lattice cells from the origin to a point along any axis (grid coordinates
+/// are `i32`, and dilation offsets are added to them).
+const MAX_CELLS_PER_AXIS: f64 = (1u32 << 24) as f64;
+/// The most candidates a lattice may have (about 80 bytes each before any coefficient).
+const MAX_CANDIDATES: f64 = (1u64 << 27) as f64;
+
+/// Fails (instead of exhausting memory) when a template would have absurdly many
+/// samples: a sample spacing far finer than the shape.
+fn check_template_sizes(spec: &LatticeSpec) -> Result<()> {
+    for s in &spec.shapes {
+        let n = s.area() / (spec.sample_spacing * spec.sample_spacing);
+        if n.is_nan() || n > MAX_TEMPLATE_SAMPLES {
+            return Err(Error::TooLarge(format!(
+                "a {} of area {:.3e} sampled every {} would need about {n:.1e} samples \
+                 (at most {MAX_TEMPLATE_SAMPLES:.0e}); use a coarser --sample-spacing",
+                s.kind().name(),
+                s.area(),
+                spec.sample_spacing
+            )));
+        }
+    }
+    Ok(())
+}
+
+/// Fails when the cloud spans more lattice cells than grid coordinates can hold: a
+/// spacing absurdly fine for the cloud's extent (or a cloud far from the origin).
+fn check_grid_extent(spec: &LatticeSpec, cloud: &PointCloud) -> Result<()> {
+    let far = cloud
+        .points
+        .iter()
+        .map(|p| (p - spec.origin).norm())
+        .fold(0.0, f64::max);
+    let cells = far / spec.spacing;
+    if cells.is_nan() || cells > MAX_CELLS_PER_AXIS {
+        return Err(Error::TooLarge(format!(
+            "a lattice spacing of {} puts the cloud up to {cells:.1e} cells from the lattice \
+             origin (at most {MAX_CELLS_PER_AXIS:.0e}); use a coarser --spacing or an --origin nearer the cloud",
+            spec.spacing
+        )));
+    }
+    Ok(())
+}
+
+/// Fails when dilating the `occupied` nodes by `reach` cells could give more than
+/// [`MAX_CANDIDATES`] candidates of `shape` (a spacing far finer than the shape).
+fn check_dilation(
+    spec: &LatticeSpec,
+    shape: &Shape,
+    occupied: &[Node],
+    reach: f64,
+    rotations: usize,
+) -> Result<()> {
+    let k = reach.floor();
+    let ball = (2.0 * k + 1.0).powi(3);
+    // Nodes: at most every offset of every occupied node, and at most every cell of
+    // the occupied bounding box grown by `k`.
+    let mut boxed = 1.0;
+    for axis in 0..3 {
+        let lo = occupied.iter().map(|n| n[axis]).min().unwrap_or(0);
+        let hi = occupied.iter().map(|n| n[axis]).max().unwrap_or(0);
+        boxed *= f64::from(hi) - f64::from(lo) + 1.0 + 2.0 * k;
+    }
+    let bound = (occupied.len() as f64 * ball).min(boxed) * rotations as f64;
+    if !(ball <= MAX_CANDIDATES && bound <= MAX_CANDIDATES) {
+        return Err(Error::TooLarge(format!(
+            "a {} of radius {:.3e} on a lattice of spacing {} could give up to {:.1e} \
+             candidates (at most {MAX_CANDIDATES:.0e}); use a coarser --spacing",
+            shape.kind().name(),
+            shape.bounding_radius(),
+            spec.spacing,
+            bound.max(ball)
+        )));
+    }
+    Ok(())
+}
 
 /// Grid coordinates of the lattice node nearest to `p`.
 fn node_of(spec: &LatticeSpec, p: &Point3<f64>) -> Node {

@@ -11,7 +11,7 @@ use primfit_core::io::{self, Encoding};
 use primfit_core::na::Point3;
 use primfit_core::solve::{Parameterization, SolverOptions};
 
-use super::{Output, parse_limit, parse_point};
+use super::{Output, check_output, parse_limit, parse_pair, parse_point};
 use crate::progress::Bars;
 
 /// Arguments of `primfit fit`. Every size defaults to a value derived from the cloud
@@ -65,8 +65,8 @@ pub struct FitArgs {
     #[arg(long)]
     pub cap: Option<f64>,
     /// Weights of the primitive and point terms, `a,b` [default: 1,1].
-    #[arg(long, value_delimiter = ',', num_args = 2)]
-    pub weights: Option<Vec<f64>>,
+    #[arg(long, value_parser = parse_pair, allow_hyphen_values = true)]
+    pub weights: Option<[f64; 2]>,
     /// Inference method (mcmc needs sensor origins per point).
     #[arg(long, default_value = "chamfer", value_parser = ["chamfer", "mcmc"])]
     pub method: String,
@@ -93,22 +93,25 @@ impl FitArgs {
         let kinds = self
             .types
             .iter()
-            .map(|t| ShapeKind::parse(t))
-            .collect::<Result<Vec<_>, _>>()?;
+            .map(|t| ShapeKind::parse(t.trim()))
+            .collect::<Result<Vec<_>, _>>()
+            .context("--types")?;
         if kinds.is_empty() {
             bail!("--types needs at least one primitive type");
         }
         let mesh = match (&self.mesh_model, kinds.contains(&ShapeKind::Mesh)) {
             (Some(path), _) => {
                 let m = io::read_mesh(path)?;
-                Some(MeshShape::new(path.display().to_string(), m)?)
+                let shape = MeshShape::new(path.display().to_string(), m)
+                    .with_context(|| format!("{}: unusable as a mesh model", path.display()))?;
+                Some(shape)
             }
             (None, true) => bail!("--types mesh needs --mesh-model object.ply"),
             (None, false) => None,
         };
-        let (primitive_weight, point_weight) = match self.weights.as_deref() {
-            Some([a, b]) => (Some(*a), Some(*b)),
-            _ => (None, None),
+        let (primitive_weight, point_weight) = match self.weights {
+            Some([a, b]) => (Some(a), Some(b)),
+            None => (None, None),
         };
         Ok(FitOptions {
             kinds,
@@ -142,17 +145,38 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
     if args.method == "mcmc" {
         bail!("--method mcmc is not available in this build yet; use --method chamfer");
     }
+    let mut outputs = vec![];
+    outputs.extend(args.output.as_deref());
+    outputs.extend(args.mesh.as_deref());
+    let mut inputs = vec![args.scene.as_path()];
+    inputs.extend(args.mesh_model.as_deref());
+    for path in &outputs {
+        check_output(path, &inputs)?;
+    }
+    if let [a, b] = outputs[..]
+        && a == b
+    {
+        bail!("{}: given both as -o and as --mesh", a.display());
+    }
     let options = args.options()?;
     let (cloud, report) = io::read_cloud_report(&args.scene)?;
-    if report.skipped_non_finite > 0 && !out.quiet {
-        eprintln!(
-            "warning: {}: skipped {} points with NaN/inf coordinates",
+    if cloud.is_empty() && report.skipped_non_finite > 0 {
+        bail!(
+            "{}: the cloud has no points: all {} have a NaN or infinite coordinate",
             args.scene.display(),
             report.skipped_non_finite
         );
     }
     if cloud.is_empty() {
         bail!("{}: the cloud has no points", args.scene.display());
+    }
+    if report.skipped_non_finite > 0 && !out.quiet {
+        eprintln!(
+            "warning: {}: skipped {} of {} points with a NaN or infinite coordinate",
+            args.scene.display(),
+            report.skipped_non_finite,
+            report.vertices_in_file
+        );
     }
     let bars = Bars::new(out.quiet, out.verbose);
     let result = fit(&cloud, &options, &bars)
@@ -202,7 +226,7 @@ fn print_summary(
         r.stats.candidates
     );
     println!(
-        "point→model mean {:.4}, p95 {:.4}, max {:.4}; model→point mean {:.4}; coverage@{} {:.1} %",
+        "point→model mean {:.4}, p95 {:.4}, max {:.4}; model→point mean {:.4}; coverage@{:.4} {:.1} %",
         m.point_to_model_mean,
         m.point_to_model_p95,
         m.point_to_model_max,

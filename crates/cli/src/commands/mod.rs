@@ -1,5 +1,9 @@
 //! One module per subcommand.
 
+use std::path::Path;
+
+use anyhow::{Result, bail};
+
 pub mod eval;
 pub mod fit;
 pub mod synth;
@@ -35,5 +39,54 @@ pub fn parse_limit(s: &str) -> Result<usize, String> {
             Ok(n) => Ok(n),
             Err(e) => Err(format!("{e} (expected a count or inf)")),
         },
+    }
+}
+
+/// Parses two comma-separated numbers (`a,b`).
+pub fn parse_pair(s: &str) -> Result<[f64; 2], String> {
+    let v: Vec<f64> = s
+        .split(',')
+        .map(|t| t.trim().parse::<f64>())
+        .collect::<Result<_, _>>()
+        .map_err(|e| format!("{e} (expected two numbers a,b)"))?;
+    match v[..] {
+        [a, b] => Ok([a, b]),
+        _ => Err(format!("expected two numbers a,b, got {s:?}")),
+    }
+}
+
+/// Checks, before any work is done, that `path` can be written as an output file: its
+/// folder exists and it is not a folder itself, nor one of the `inputs`.
+pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
+    let dir = match path.parent() {
+        Some(d) if !d.as_os_str().is_empty() => d,
+        _ => Path::new("."),
+    };
+    if path.file_name().is_none() || path.is_dir() {
+        bail!("{}: is a folder, not an output file", path.display());
+    }
+    if !dir.is_dir() {
+        bail!(
+            "{}: cannot write: the folder {} does not exist",
+            path.display(),
+            dir.display()
+        );
+    }
+    for input in inputs {
+        if same_file(path, input) {
+            bail!(
+                "{}: refusing to overwrite an input file with output",
+                path.display()
+            );
+        }
+    }
+    Ok(())
+}
+
+/// Whether two paths name the same existing file.
+fn same_file(a: &Path, b: &Path) -> bool {
+    match (a.canonicalize(), b.canonicalize()) {
+        (Ok(x), Ok(y)) => x == y,
+        _ => false,
     }
 }

@@ -10,7 +10,7 @@ use primfit_core::io::{self, Encoding};
 use primfit_core::synth::{self, Density, Misalignment, Noise, Scene};
 use serde_json::json;
 
-use super::Output;
+use super::{Output, check_output};
 
 /// Scene kinds.
 #[derive(Debug, Clone, Copy, ValueEnum)]
@@ -105,6 +105,17 @@ fn density(points: Option<usize>, default: Density) -> Density {
 
 /// Runs `primfit synth`.
 pub fn run(a: SynthArgs, out: &Output) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = a.model.as_deref().into_iter().collect();
+    check_output(&a.output, &inputs)?;
+    if let Some(truth) = &a.truth {
+        check_output(truth, &inputs)?;
+        if truth == &a.output {
+            bail!("{}: given both as -o and as --truth", truth.display());
+        }
+    }
+    if a.points == Some(0) {
+        bail!("--points must be at least 1");
+    }
     let noise = |default_jitter: f64| Noise {
         jitter: a.jitter.unwrap_or(default_jitter),
         drift: a.drift,
@@ -190,6 +201,9 @@ pub fn run(a: SynthArgs, out: &Output) -> Result<()> {
             )
         }
     };
+    if scene.cloud.is_empty() {
+        bail!("the scene would have no points (see --points, --inliers, --outliers)");
+    }
     write(&a, &scene, extra)?;
     if !out.quiet {
         println!(

@@ -126,6 +126,9 @@ impl Density {
                 }
                 Ok(n as usize)
             }
+            Density::Total(n) if n > 1_000_000_000 => {
+                Err(Error::invalid(format!("{n} points asked for (limit 1e9)")))
+            }
             Density::Total(n) => Ok(n),
         }
     }

@@ -97,6 +97,14 @@ pub fn hallway(params: &HallwayParams) -> Result<Scene> {
             "hallway length ({length}) must be at least one square side ({side})"
         )));
     }
+    // Squares: about (length / s) × (floor, ceiling and walls) / s.
+    let tiles = (length / s) * ((2.0 * width + 2.0 * height) / s);
+    if tiles > 1e7 {
+        return Err(Error::invalid(format!(
+            "a {length} × {width} × {height} hallway of squares of side {side} would need \
+             about {tiles:.1e} squares (limit 1e7)"
+        )));
+    }
     let (ix, iy, iz) = (
         tile_indices(length, side),
         tile_indices(width, side),
