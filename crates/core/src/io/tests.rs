@@ -944,7 +944,7 @@ fn io_binary_trailing_bytes() {
     fails(
         read_cloud(&path),
         &path,
-        "unexpected data 0 bytes past the end of the last element",
+        "unexpected data right after the last element",
     );
 }
 

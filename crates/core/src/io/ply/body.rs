@@ -187,10 +187,13 @@ impl<R: BufRead> Body<R> {
                 return Ok(());
             }
             if let Some(k) = chunk.iter().position(|b| !b.is_ascii_whitespace()) {
+                let at = match offset + k {
+                    0 => "right after".to_string(),
+                    n => format!("{n} bytes after"),
+                };
                 let msg = format!(
-                    "unexpected data {} bytes past the end of the last element the header \
-                     declares (the header's counts or types do not match the {} body)",
-                    offset + k,
+                    "unexpected data {at} the last element the header declares \
+                     (the header's counts or types do not match the {} body)",
                     self.format
                 );
                 return Err(Error::format(&self.path, msg));
