@@ -65,7 +65,7 @@ impl<'t> SceneState<'t> {
         self.total = self.ray_ll.iter().sum();
     }
 
-    /// Flips the candidates `flips` (each id at most once, all `< N`) and returns the change
+    /// Flips the candidates `flips` (all `< N`; an id listed twice flips back) and returns the change
     /// of `log p(D | Φ)` (nats). Must be followed by [`SceneState::accept`] or
     /// [`SceneState::reject`] before the next proposal.
     pub fn propose(&mut self, flips: &[u32]) -> Result<f64> {

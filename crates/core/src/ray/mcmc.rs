@@ -177,7 +177,7 @@ impl RateGroups {
             loop {
                 let u = unit_open(rng);
                 let gap = (u.ln() / log_keep).floor();
-                if !(gap < (members.len() - k) as f64) {
+                if gap.is_nan() || gap >= (members.len() - k) as f64 {
                     break;
                 }
                 k += gap as usize;
@@ -303,7 +303,7 @@ pub fn sample(
             for &i in &flips {
                 occupancy.changed(i as usize, state.exists()[i as usize], k);
             }
-            if out.accepted % 4096 == 0 {
+            if out.accepted.is_multiple_of(4096) {
                 state.resum();
             }
             let post = state.log_likelihood() + log_prior;
@@ -315,10 +315,10 @@ pub fn sample(
         } else {
             state.reject();
         }
-        if k % trace_every == 0 {
+        if k.is_multiple_of(trace_every) {
             out.trace.push(state.log_likelihood() + log_prior);
         }
-        if k % 1024 == 0 {
+        if k.is_multiple_of(1024) {
             progress.advance(1024);
         }
     }

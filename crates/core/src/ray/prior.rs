@@ -133,12 +133,12 @@ fn counts(need: &Need, cloud: &PointCloud, j: usize) -> bool {
     let flat_label = matches!(label, Some(GROUND | WALL | DOOR));
     match need {
         Need::Flat { normal: a, class } => {
-            let label_ok = match (label, class) {
-                (None | Some(0), _) => true,
-                (Some(GROUND), Class::FaceUp) => true,
-                (Some(WALL | DOOR), Class::Vertical) => true,
-                _ => false,
-            };
+            let label_ok = matches!(
+                (label, class),
+                (None | Some(0), _)
+                    | (Some(GROUND), Class::FaceUp)
+                    | (Some(WALL | DOOR), Class::Vertical)
+            );
             label_ok && normal.is_none_or(|n| n.dot(a).abs() >= COS_45 * n.norm())
         }
         Need::Tube { axis } => {

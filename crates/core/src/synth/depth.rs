@@ -125,6 +125,50 @@ pub fn look_at(eye: Point3<f64>, target: Point3<f64>) -> Result<Pose> {
     Ok(Pose::new(rotation, eye.coords))
 }
 
+/// `frames` poses evenly spaced from `from` to `to` (both included; one frame: `from`),
+/// each looking `ahead` scene units further along the path and `drop` units lower: a
+/// walk-through (e.g. down a hallway).
+pub fn walk_poses(
+    from: Point3<f64>,
+    to: Point3<f64>,
+    frames: usize,
+    ahead: f64,
+    drop: f64,
+) -> Result<Vec<Pose>> {
+    let dir = (to - from)
+        .try_normalize(1e-12)
+        .ok_or_else(|| Error::invalid("walk_poses: from and to coincide"))?;
+    (0..frames)
+        .map(|k| {
+            let s = if frames > 1 {
+                k as f64 / (frames - 1) as f64
+            } else {
+                0.0
+            };
+            let eye = from + (to - from) * s;
+            look_at(eye, eye + dir * ahead - Vector3::z() * drop)
+        })
+        .collect()
+}
+
+/// `frames` poses on the horizontal circle of `radius` about `centre` (at `centre.z +
+/// height`), each looking at `centre`: an orbit around a compact scene.
+pub fn orbit_poses(
+    centre: Point3<f64>,
+    radius: f64,
+    height: f64,
+    frames: usize,
+) -> Result<Vec<Pose>> {
+    positive("orbit radius", radius)?;
+    (0..frames)
+        .map(|k| {
+            let a = std::f64::consts::TAU * k as f64 / frames.max(1) as f64;
+            let eye = centre + Vector3::new(radius * a.cos(), radius * a.sin(), height);
+            look_at(eye, centre)
+        })
+        .collect()
+}
+
 /// One pixel's nearest crossing: `(truth index, depth, normal)`.
 fn nearest(
     truth: &[Primitive],
@@ -260,5 +304,11 @@ mod tests {
             assert!(depth_sensor(&truth, &bad).is_err());
         }
         assert!(look_at(Point3::origin(), Point3::origin()).is_err());
+        assert!(walk_poses(Point3::origin(), Point3::origin(), 3, 1.0, 0.0).is_err());
+        let walk = walk_poses(Point3::origin(), Point3::new(4.0, 0.0, 0.0), 3, 1.0, 0.0).unwrap();
+        assert_eq!(walk[2].translation, Vector3::new(4.0, 0.0, 0.0));
+        assert!((walk[1].rotation * Vector3::x() - Vector3::x()).norm() < 1e-12);
+        let orbit = orbit_poses(Point3::origin(), 2.0, 1.0, 4).unwrap();
+        assert!((orbit[1].translation - Vector3::new(0.0, 2.0, 1.0)).norm() < 1e-12);
     }
 }

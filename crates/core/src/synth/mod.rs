@@ -37,7 +37,7 @@ pub use common::{
     Density, LatticeHint, Misalignment, Noise, Scene, axis_rotation, elbow_rotation,
     sample_shape_local,
 };
-pub use depth::{SensorParams, depth_sensor, look_at};
+pub use depth::{SensorParams, depth_sensor, look_at, orbit_poses, walk_poses};
 pub use hallway::{HallwayParams, hallway};
 pub use nine::{NineCylinderParams, nine_cylinders, nine_cylinders_candidates};
 pub use pipe::{PipeParams, pipe};
