@@ -313,6 +313,22 @@ impl Settings {
             "mesh_model": self.mesh.as_ref().map(|m| m.source.clone()),
         });
         if let Value::Object(m) = &mut doc {
+            if self.method != Method::Chamfer {
+                // The chamfer loss and its solver play no part in other methods.
+                for key in [
+                    "model",
+                    "alpha",
+                    "beta",
+                    "cap",
+                    "weights",
+                    "parameterization",
+                    "max_iterations",
+                    "threshold",
+                    "polish",
+                ] {
+                    m.remove(key);
+                }
+            }
             m.extend(self.method_settings.clone());
         }
         doc

@@ -409,6 +409,7 @@ fn fit_mcmc_recovers_a_scanned_room_on_the_lattice() {
     );
     let json = result.to_json(serde_json::json!({}));
     assert_eq!(json["settings"]["method"], "mcmc");
+    assert!(json["settings"].get("beta").is_none());
     assert!(json["settings"]["mcmc"]["accepted"].as_u64().unwrap() > 0);
     // Without sensor origins it says so.
     let bare = PointCloud::from_points(cloud.points.clone());
