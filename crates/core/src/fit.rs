@@ -67,6 +67,26 @@ pub struct FitOptions {
     pub seed: u64,
 }
 
+/// The inference method of a fit (`--method`).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum Method {
+    /// Probabilistic chamfer + L-BFGS over existence (thesis ch. 6).
+    #[default]
+    Chamfer,
+    /// Ray likelihood + Metropolis–Hastings over existence (thesis ch. 4, [`crate::ray`]).
+    Mcmc,
+}
+
+impl Method {
+    /// The CLI/JSON name.
+    pub fn name(self) -> &'static str {
+        match self {
+            Method::Chamfer => "chamfer",
+            Method::Mcmc => "mcmc",
+        }
+    }
+}
+
 /// Every setting of a fit, defaults resolved.
 #[derive(Debug, Clone)]
 pub struct Settings {
@@ -98,6 +118,11 @@ pub struct Settings {
     pub memory_budget: u64,
     /// Mesh source, if the mesh type is used.
     pub mesh: Option<MeshShape>,
+    /// The inference method.
+    pub method: Method,
+    /// Settings specific to the method, merged into [`Settings::to_json`] (e.g. the ray
+    /// model and sampler of `mcmc`).
+    pub method_settings: serde_json::Map<String, Value>,
 }
 
 /// `x` rounded down to 1, 2 or 5 × 10^k.
@@ -223,6 +248,8 @@ impl Settings {
             seed: o.seed,
             memory_budget: o.memory_budget.unwrap_or(physical_memory() / 2),
             mesh: o.mesh.clone(),
+            method: Method::Chamfer,
+            method_settings: serde_json::Map::new(),
         })
     }
 
@@ -267,7 +294,7 @@ impl Settings {
     /// Every setting as JSON (`result.json`'s `"settings"`).
     pub fn to_json(&self) -> Value {
         let lim = |v: Option<usize>| v.map_or(Value::from("inf"), Value::from);
-        json!({
+        let mut doc = json!({
             "types": self.kinds.iter().map(|k| k.name()).collect::<Vec<_>>(),
             "size": self.size,
             "radius": self.radius,
@@ -285,10 +312,30 @@ impl Settings {
             "max_iterations": self.solver.max_iterations,
             "threshold": self.solver.threshold,
             "polish": self.solver.polish,
-            "method": "chamfer",
+            "method": self.method.name(),
             "seed": self.seed,
             "mesh_model": self.mesh.as_ref().map(|m| m.source.clone()),
-        })
+        });
+        if let Value::Object(m) = &mut doc {
+            if self.method != Method::Chamfer {
+                // The chamfer loss and its solver play no part in other methods.
+                for key in [
+                    "model",
+                    "alpha",
+                    "beta",
+                    "cap",
+                    "weights",
+                    "parameterization",
+                    "max_iterations",
+                    "threshold",
+                    "polish",
+                ] {
+                    m.remove(key);
+                }
+            }
+            m.extend(self.method_settings.clone());
+        }
+        doc
     }
 }
 

@@ -18,6 +18,7 @@
 //! | [`lattice`] | the candidate set G = types × orientations × translation grid |
 //! | [`chamfer`] | the probabilistic chamfer distance: coefficients, value, gradient |
 //! | [`solve`] | projected L-BFGS over existence, thresholding, discrete polish |
+//! | [`ray`] | ray likelihood (thesis eq. 4.10), RayTree, Metropolis–Hastings (thesis ch. 4) |
 //! | [`synth`] | synthetic scenes with ground truth |
 //! | [`metrics`] | the measures of DESIGN §4 |
 //! | [`io`] | PLY and JSON |
@@ -38,6 +39,7 @@ pub mod lattice;
 pub mod metrics;
 pub mod primitive;
 pub mod progress;
+pub mod ray;
 pub mod solve;
 pub mod spatial;
 pub mod synth;

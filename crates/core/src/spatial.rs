@@ -1,4 +1,5 @@
-//! [`PointIndex`]: exact nearest-neighbour queries over 3-D points.
+//! [`PointIndex`]: exact nearest-neighbour queries over 3-D points; [`PlaneIndex`]: radius
+//! queries over 2-D points (the angles of [`crate::ray::RayTree`]).
 //!
 //! The only module that imports kiddo; the rest of the crate sees plain
 //! `(index, squared distance)` pairs. Distances returned here are **squared**.
@@ -97,6 +98,63 @@ impl PointIndex {
     }
 }
 
+/// A static KD-tree over 2-D points (kiddo's `ImmutableKdTree<f64, 2>`), tolerant of
+/// empty input. Used for the (azimuth, elevation) coordinates of rays.
+pub struct PlaneIndex {
+    tree: Option<ImmutableKdTree<f64, 2>>,
+    len: usize,
+}
+
+impl std::fmt::Debug for PlaneIndex {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.debug_struct("PlaneIndex")
+            .field("len", &self.len)
+            .finish()
+    }
+}
+
+impl PlaneIndex {
+    /// Builds the index. Item ids are positions in `points`; points must be finite; at
+    /// most `u32::MAX` points.
+    pub fn new(points: &[[f64; 2]]) -> Self {
+        let tree = if points.is_empty() {
+            None
+        } else if points.len() > 50_000 {
+            ImmutableKdTree::new_from_slice_parallel(points).ok()
+        } else {
+            ImmutableKdTree::new_from_slice(points).ok()
+        };
+        PlaneIndex {
+            tree,
+            len: points.len(),
+        }
+    }
+
+    /// Number of indexed points.
+    pub fn len(&self) -> usize {
+        self.len
+    }
+
+    /// True when no points are indexed.
+    pub fn is_empty(&self) -> bool {
+        self.len == 0
+    }
+
+    /// Ids of every point with squared distance ≤ `r2` from `q`, unsorted.
+    pub fn within(&self, q: [f64; 2], r2: f64) -> Vec<u32> {
+        let Some(tree) = self.tree.as_ref() else {
+            return Vec::new();
+        };
+        tree.query(&q)
+            .within::<SquaredEuclidean<f64>>(r2)
+            .unsorted()
+            .execute()
+            .into_iter()
+            .map(|r| r.item)
+            .collect()
+    }
+}
+
 /// Median distance from a point to its nearest other point, estimated on at most
 /// `max_probe` evenly spaced points: the cloud's typical point spacing. `None` when fewer
 /// than two distinct points exist.
@@ -155,6 +213,25 @@ mod tests {
         assert!(idx.nearest(&Point3::origin()).is_none());
         assert!(idx.nearest_n(&Point3::origin(), 3).is_empty());
         assert!(idx.within(&Point3::origin(), 1.0).is_empty());
+    }
+
+    #[test]
+    fn plane_index_ball_matches_brute_force() {
+        let pts: Vec<[f64; 2]> = (0..200)
+            .map(|i| [(i as f64 * 0.37).sin() * 3.0, (i as f64 * 0.91).cos() * 2.0])
+            .collect();
+        let idx = PlaneIndex::new(&pts);
+        let q = [0.4, -0.3];
+        let mut got = idx.within(q, 0.8);
+        got.sort();
+        let want: Vec<u32> = (0..pts.len() as u32)
+            .filter(|&i| {
+                let p = pts[i as usize];
+                (p[0] - q[0]).powi(2) + (p[1] - q[1]).powi(2) <= 0.8
+            })
+            .collect();
+        assert_eq!(got, want);
+        assert!(PlaneIndex::new(&[]).within(q, 1.0).is_empty());
     }
 
     #[test]

@@ -9,6 +9,7 @@ use primfit_core::chamfer::PointModel;
 use primfit_core::fit::{FitOptions, fit};
 use primfit_core::io::{self, Encoding};
 use primfit_core::na::Point3;
+use primfit_core::ray::{McmcFitOptions, fit_mcmc};
 use primfit_core::solve::{Parameterization, SolverOptions};
 
 use super::{Output, check_output, parse_limit, parse_pair, parse_point};
@@ -79,6 +80,21 @@ pub struct FitArgs {
     /// Skip the discrete polish after thresholding.
     #[arg(long)]
     pub no_polish: bool,
+    /// mcmc: Metropolis–Hastings proposals after burn-in [default: max(1000, 20 × candidates)].
+    #[arg(long)]
+    pub steps: Option<usize>,
+    /// mcmc: proposals before existence frequencies count [default: steps / 5].
+    #[arg(long)]
+    pub burn_in: Option<usize>,
+    /// mcmc: noise returns per unit length of ray [default: 1 / bounding-box diagonal].
+    #[arg(long)]
+    pub noise_rate: Option<f64>,
+    /// mcmc: deviation of a primitive's points along its normal [default: spacing / 10].
+    #[arg(long)]
+    pub sigma: Option<f64>,
+    /// mcmc: prior existence probability of a candidate with nearby points.
+    #[arg(long, default_value_t = 0.1)]
+    pub prior: f64,
     /// Triangle mesh (PLY with faces) used by the `mesh` type.
     #[arg(long, value_name = "object.ply")]
     pub mesh_model: Option<PathBuf>,
@@ -138,13 +154,22 @@ impl FitArgs {
             seed: self.seed,
         })
     }
+
+    /// The options of `--method mcmc`.
+    fn mcmc_options(&self) -> McmcFitOptions {
+        McmcFitOptions {
+            rate: self.noise_rate,
+            sigma: self.sigma,
+            prior: self.prior,
+            steps: self.steps,
+            burn_in: self.burn_in,
+            ..Default::default()
+        }
+    }
 }
 
 /// Runs `primfit fit`.
 pub fn run(args: FitArgs, out: &Output) -> Result<()> {
-    if args.method == "mcmc" {
-        bail!("--method mcmc is not available in this build yet; use --method chamfer");
-    }
     let mut outputs = vec![];
     outputs.extend(args.output.as_deref());
     outputs.extend(args.mesh.as_deref());
@@ -178,9 +203,19 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
             report.vertices_in_file
         );
     }
+    if args.method == "mcmc" && cloud.sensors.is_none() {
+        bail!(
+            "{}: --method mcmc needs each point's sensor origin (PLY vertex properties \
+             sensor_x, sensor_y, sensor_z); use --method chamfer for clouds without them",
+            args.scene.display()
+        );
+    }
     let bars = Bars::new(out.quiet, out.verbose);
-    let result = fit(&cloud, &options, &bars)
-        .with_context(|| format!("fitting {}", args.scene.display()))?;
+    let result = match args.method.as_str() {
+        "mcmc" => fit_mcmc(&cloud, &options, &args.mcmc_options(), &bars),
+        _ => fit(&cloud, &options, &bars),
+    }
+    .with_context(|| format!("fitting {}", args.scene.display()))?;
     let metrics = super::eval::measure(&cloud, &result.primitives, None)?;
     let encoding = if args.ascii {
         Encoding::Ascii
@@ -234,7 +269,20 @@ fn print_summary(
         m.coverage_tau,
         100.0 * m.coverage
     );
-    if verbose {
+    if verbose && r.settings.method == primfit_core::fit::Method::Mcmc {
+        let s = &r.stats;
+        println!(
+            "{} crossings × {} B = {:.1} MiB; lattice {:.2} s, ray table {:.2} s, sampling {:.2} s ({} proposals, {} accepted)",
+            s.entries,
+            s.bytes_per_entry,
+            s.coefficient_bytes as f64 / (1 << 20) as f64,
+            s.lattice_seconds,
+            s.coefficient_seconds,
+            s.solve_seconds,
+            r.solution.iterations,
+            r.solution.flips
+        );
+    } else if verbose {
         let s = &r.stats;
         println!(
             "{} entries × {} B = {:.1} MiB; lattice {:.2} s, coefficients {:.2} s, solve {:.2} s ({} iterations, {} evaluations, {} polish flips)",

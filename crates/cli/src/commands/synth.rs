@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use anyhow::{Context, Result, bail};
 use clap::{Args, ValueEnum};
-use primfit_core::atlas::MeshShape;
+use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::fit::result_json;
 use primfit_core::io::{self, Encoding};
 use primfit_core::synth::{self, Density, Misalignment, Noise, Scene};
@@ -97,6 +97,12 @@ pub struct SynthArgs {
     /// Registration: uniform outliers.
     #[arg(long, default_value_t = 1900)]
     pub outliers: usize,
+    /// Replace the sampled cloud by a simulated depth-sensor scan of the truth from this
+    /// many poses (a walk down the hallway, an orbit around other scenes): points get
+    /// sensor origins (for `fit --method mcmc`), normals and labels (flat face-up: 1
+    /// ground at the floor; vertical: 2 wall; other: 0). --jitter is the range noise.
+    #[arg(long, value_name = "FRAMES")]
+    pub scan: Option<usize>,
 }
 
 fn density(points: Option<usize>, default: Density) -> Density {
@@ -201,6 +207,10 @@ pub fn run(a: SynthArgs, out: &Output) -> Result<()> {
             )
         }
     };
+    let scene = match a.scan {
+        Some(frames) => rescan(scene, frames, &a)?,
+        None => scene,
+    };
     if scene.cloud.is_empty() {
         bail!("the scene would have no points (see --points, --inliers, --outliers)");
     }
@@ -218,6 +228,56 @@ pub fn run(a: SynthArgs, out: &Output) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Replaces the cloud of `scene` by a depth-sensor scan of its truth.
+fn rescan(mut scene: Scene, frames: usize, a: &SynthArgs) -> Result<Scene> {
+    use primfit_core::na::{Point3, Vector3};
+    if frames == 0 {
+        bail!("--scan needs at least one frame");
+    }
+    let (lo, hi) = primfit_core::cloud::bounds_of(&scene.cloud.points)
+        .context("the scene has no points to place the sensor")?;
+    let centre = Point3::from((lo.coords + hi.coords) / 2.0);
+    let extent = hi - lo;
+    let poses = match a.kind {
+        Kind::Hallway => {
+            let eye = |x: f64| Point3::new(x, centre.y, lo.z + 1.2f64.min(extent.z * 0.6));
+            synth::walk_poses(eye(lo.x + 0.3), eye(hi.x - 2.0), frames, 3.0, 0.6)?
+        }
+        _ => synth::orbit_poses(
+            centre,
+            1.5 * extent.norm().max(1e-3),
+            0.5 * extent.z,
+            frames,
+        )?,
+    };
+    let labels = scene
+        .truth
+        .iter()
+        .map(|p| {
+            let n = p.pose.rotation * Vector3::z();
+            let flat = matches!(p.shape.kind(), ShapeKind::Square | ShapeKind::Disk);
+            match (flat, n.z.abs()) {
+                (true, c) if c > 0.9 && p.center().z <= lo.z + 1e-6 => 1,
+                (true, c) if c < 1e-6 => 2,
+                _ => 0,
+            }
+        })
+        .collect();
+    let params = synth::SensorParams {
+        poses,
+        columns: 160,
+        rows: 120,
+        max_range: 4.0 * extent.norm().max(1.0),
+        range_noise: a.jitter.unwrap_or(0.01),
+        labels: Some(labels),
+        normals: true,
+        seed: a.seed,
+        ..Default::default()
+    };
+    scene.cloud = synth::depth_sensor(&scene.truth, &params)?;
+    Ok(scene)
 }
 
 fn write(a: &SynthArgs, scene: &Scene, extra: serde_json::Value) -> Result<()> {

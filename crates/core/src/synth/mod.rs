@@ -5,6 +5,9 @@
 //! the point cloud, the true primitives, and the [`LatticeHint`] on which the truth
 //! lives, so a test can build the matching candidate set.
 //!
+//! [`depth_sensor`] instead ray-casts a truth from sensor poses (multi-frame scans with
+//! sensor origins, for the ray likelihood).
+//!
 //! Noise model, applied in this order (all lengths in scene units, metres by default):
 //!
 //! 1. points are drawn **area-uniformly at random** on the true surfaces
@@ -23,6 +26,7 @@
 //! normal ∈ {x, y, z} × 4 quadrants) with its torus centre on the lattice.
 
 mod common;
+mod depth;
 mod hallway;
 mod nine;
 mod pipe;
@@ -33,6 +37,7 @@ pub use common::{
     Density, LatticeHint, Misalignment, Noise, Scene, axis_rotation, elbow_rotation,
     sample_shape_local,
 };
+pub use depth::{SensorParams, depth_sensor, look_at, orbit_poses, walk_poses};
 pub use hallway::{HallwayParams, hallway};
 pub use nine::{NineCylinderParams, nine_cylinders, nine_cylinders_candidates};
 pub use pipe::{PipeParams, pipe};
