@@ -5,7 +5,7 @@ use primfit::progress::Silent;
 use primfit::synth::{Density, HallwayParams, PipeParams, hallway, pipe};
 
 fn main() {
-    for (beta, init) in [(32, 0.5), (32, 0.1), (32, 0.9), (32, 0.02)] {
+    for (beta, init) in [(32, 0.5)] {
         let mut line = format!("init {init}:");
         for seed in 0..4 {
             let scene = pipe(&PipeParams {

@@ -1,36 +1,66 @@
-//! Fits a synthetic hallway and reports the worst-explained points (developer aid).
-use primfit::fit::{FitOptions, fit};
+//! Hallway fit vs truth, plane by plane (developer aid).
+use primfit::fit::{FitOptions, binary_chamfer, fit};
 use primfit::metrics::point_to_model_distances;
 use primfit::progress::Silent;
-use primfit::synth::{HallwayParams, hallway};
+use primfit::synth::{Density, HallwayParams, hallway};
+
+fn plane(c: &primfit::na::Point3<f64>) -> &'static str {
+    if c.z.abs() < 1e-9 {
+        "floor"
+    } else if c.y.abs() < 1e-9 {
+        "wall y=0"
+    } else if (c.y - 2.0).abs() < 1e-9 {
+        "wall y=2"
+    } else {
+        "other"
+    }
+}
 
 fn main() {
-    let scene = hallway(&HallwayParams::default()).unwrap();
-    let r = fit(&scene.cloud, &FitOptions::default(), &Silent).unwrap();
-    let d = point_to_model_distances(&scene.cloud.points, &r.primitives).unwrap();
-    let mut worst: Vec<(f64, usize)> = d.iter().copied().zip(0..).collect();
-    worst.sort_by(|a, b| b.0.total_cmp(&a.0));
-    for (dist, j) in worst.iter().take(8) {
-        println!("{dist:.3} at {:?}", scene.cloud.points[*j]);
-    }
-    let h = &r.solution.history;
-    println!(
-        "iterations {} stop {:?} flips {}",
-        r.solution.iterations, r.solution.stop, r.solution.flips
-    );
-    for k in [0, 1, 2, 5, 10, 20, 50, 100, 150, h.len() - 1] {
-        if k < h.len() {
-            println!("  f[{k}] = {:.6}", h[k]);
+    let p = HallwayParams {
+        seed: 0,
+        length: 6.0,
+        density: Density::PerArea(400.0),
+        ..Default::default()
+    };
+    let scene = hallway(&p).unwrap();
+    let r = fit(
+        &scene.cloud,
+        &FitOptions {
+            size: Some(1.0),
+            ..Default::default()
+        },
+        &Silent,
+    )
+    .unwrap();
+    for (name, set) in [("truth", &scene.truth), ("fit", &r.primitives)] {
+        let mut v: Vec<String> = set
+            .iter()
+            .map(|q| {
+                let c = q.center();
+                format!("{} ({:.1},{:.1},{:.1})", plane(&c), c.x, c.y, c.z)
+            })
+            .collect();
+        v.sort();
+        let loss = binary_chamfer(&scene.cloud, set, &r.settings).unwrap();
+        println!("{name}: {} primitives, {:?}", set.len(), loss);
+        for s in v {
+            if !s.starts_with("floor") {
+                continue;
+            }
+            print!("{s}; ");
         }
+        println!();
     }
-    let p = &r.solution.probability;
-    let mid = p.iter().filter(|x| **x > 0.05 && **x < 0.95).count();
-    println!("undecided (0.05..0.95): {mid} of {}", p.len());
-    let truth = primfit::fit::binary_chamfer(&scene.cloud, &scene.truth, &r.settings).unwrap();
-    let fitted = primfit::fit::binary_chamfer(&scene.cloud, &r.primitives, &r.settings).unwrap();
-    println!("exact binary chamfer: fit {fitted:?}\n                      truth {truth:?}");
-    println!(
-        "thresholded {:?}\nfinal {:?}",
-        r.solution.thresholded, r.solution.binary
-    );
+    let d = point_to_model_distances(&scene.cloud.points, &r.primitives).unwrap();
+    let far: Vec<_> = scene
+        .cloud
+        .points
+        .iter()
+        .zip(&d)
+        .filter(|(_, d)| **d > 0.05)
+        .map(|(p, d)| format!("({:.2},{:.2},{:.2}):{d:.2}", p.x, p.y, p.z))
+        .take(10)
+        .collect();
+    println!("far points: {far:?}");
 }

@@ -376,7 +376,13 @@ pub fn lbfgs(
 /// 2. **add and prune**: add a candidate, then remove every neighbour it made redundant
 ///    (a current owner of one of its rows whose removal no longer costs anything); keep
 ///    the whole move only if the total strictly decreases. This turns an overlapping
-///    tiling into a cleaner one, which single flips cannot.
+///    tiling into a cleaner one, which single flips cannot;
+/// 3. **replace chains**: remove a candidate, add the neighbour (a candidate with entries
+///    in the same rows) that lowers the loss most, prune as in 2; if that alone does not
+///    pay, continue with an existing candidate overlapping the new one (an ejection chain
+///    of depth [`CHAIN_DEPTH`]). Kept only if the whole chain strictly lowers the loss.
+///    This shifts a row of tiles by a lattice step, e.g. five half-overlapping tiles
+///    into four abutting ones.
 ///
 /// Candidates are visited in ascending continuous probability. Incremental: each point
 /// keeps its current cost (nearest existing entry, or `d_cap`) and owner; a move only
@@ -407,6 +413,11 @@ pub fn polish(
                 flips += state.add_and_prune(i);
             }
         }
+        for &i in &order {
+            if state.exists[i] {
+                flips += state.replace(i);
+            }
+        }
         if flips == before {
             break;
         }
@@ -414,6 +425,9 @@ pub fn polish(
     exists.copy_from_slice(&state.exists);
     flips
 }
+
+/// Links of a replace chain (move 3 of [`polish`]).
+const CHAIN_DEPTH: usize = 2;
 
 /// The binary scene and each point's current explanation, for [`polish`].
 struct PolishState<'c> {
@@ -484,23 +498,114 @@ impl<'c> PolishState<'c> {
         }
     }
 
+    /// Move 3 of [`polish`]; returns the number of flips kept (0 if reverted).
+    fn replace(&mut self, i: usize) -> usize {
+        let mut journal = Vec::new();
+        if self.chain(i, 0.0, CHAIN_DEPTH, &mut journal) {
+            journal.len()
+        } else {
+            0
+        }
+    }
+
+    /// One link of an ejection chain: remove `i`, add its best neighbour `k`, prune what
+    /// `k` made redundant. If the running total (`so_far` plus this link) has not yet
+    /// decreased, continue from each existing candidate that overlaps `k`. Flips are
+    /// recorded in `journal`; on failure this link's flips are undone.
+    fn chain(&mut self, i: usize, so_far: f64, depth: usize, journal: &mut Vec<usize>) -> bool {
+        let mark = journal.len();
+        let mut total = so_far + self.flip_delta(i);
+        self.flip(i);
+        journal.push(i);
+        if let Some((addition, k)) = self.best_addition_near(i, journal) {
+            total += addition;
+            self.flip(k);
+            journal.push(k);
+            total += self.prune_displaced_by(k, journal);
+            if total < -self.tolerance {
+                return true;
+            }
+            if depth > 1 {
+                for c in self.existing_overlapping(k) {
+                    if !journal.contains(&c) && self.chain(c, total, depth - 1, journal) {
+                        return true;
+                    }
+                }
+            }
+        }
+        while journal.len() > mark {
+            if let Some(c) = journal.pop() {
+                self.flip(c);
+            }
+        }
+        false
+    }
+
+    /// Candidates with entries in the rows of `i` (its neighbours), sorted, without `i`.
+    fn neighbours(&self, i: usize) -> Vec<usize> {
+        let mut n: Vec<usize> = self.rows[i]
+            .iter()
+            .flat_map(|&(j, _)| {
+                self.coeffs.cand[self.coeffs.row(j as usize)]
+                    .iter()
+                    .map(|&c| c as usize)
+            })
+            .filter(|&c| c != i)
+            .collect();
+        n.sort_unstable();
+        n.dedup();
+        n
+    }
+
+    /// The absent neighbour of `i` (not already moved in this chain) whose addition lowers
+    /// the loss most, with that change.
+    fn best_addition_near(&self, i: usize, journal: &[usize]) -> Option<(f64, usize)> {
+        self.neighbours(i)
+            .into_iter()
+            .filter(|&k| !self.exists[k] && !journal.contains(&k))
+            .map(|k| (self.flip_delta(k), k))
+            .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
+    }
+
+    /// Existing neighbours of `k`.
+    fn existing_overlapping(&self, k: usize) -> Vec<usize> {
+        self.neighbours(k)
+            .into_iter()
+            .filter(|&c| self.exists[c])
+            .collect()
+    }
+
+    /// Removes every existing neighbour of `k` whose removal costs nothing, in index
+    /// order, recording them in `journal`; returns the summed change.
+    fn prune_displaced_by(&mut self, k: usize, journal: &mut Vec<usize>) -> f64 {
+        let mut total = 0.0;
+        for c in self.existing_overlapping(k) {
+            let delta = self.flip_delta(c);
+            if delta <= self.tolerance {
+                total += delta;
+                self.flip(c);
+                journal.push(c);
+            }
+        }
+        total
+    }
+
     /// The compound move of [`polish`]; returns the number of flips kept (0 if reverted).
     fn add_and_prune(&mut self, i: usize) -> usize {
-        let mut gain: f64 = self.rows[i]
-            .iter()
-            .map(|&(j, d)| (d - self.cost[j as usize]).min(0.0))
-            .sum();
-        if gain >= 0.0 {
-            return 0; // explains nothing better: cannot help
-        }
+        // Owners of the rows that `i` would explain at least as well: the neighbours it
+        // may make redundant. Ties count, so one tile can replace two half-overlapping ones
+        // even when the points are already perfectly explained.
         let mut displaced: Vec<u32> = self.rows[i]
             .iter()
-            .filter(|&&(j, d)| d < self.cost[j as usize] && self.owner[j as usize] != u32::MAX)
+            .filter(|&&(j, d)| d <= self.cost[j as usize] && self.owner[j as usize] != u32::MAX)
             .map(|&(j, _)| self.owner[j as usize])
             .collect();
+        if displaced.is_empty() {
+            return 0;
+        }
         displaced.sort_unstable();
         displaced.dedup();
-        gain = self.flip_delta(i);
+        let mut gain = self.flip_delta(i);
         self.flip(i);
         let mut removed = Vec::new();
         for &k in &displaced {

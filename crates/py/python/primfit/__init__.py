@@ -1,0 +1,484 @@
+"""primfit: represent a 3D point cloud with geometric primitives.
+
+The library infers which members of a large, fixed, discrete set of candidate
+primitives exist, by minimising a *probabilistic chamfer distance* over their existence
+probabilities (see DESIGN.md §2). Everything heavy runs in Rust with the GIL released.
+
+Arrays go in as anything numpy can read (lists, float32, Fortran order, CPU tensors):
+they are converted to C-ordered float64 here. Non-numeric arrays (object, str, bool)
+raise ``TypeError``; wrong shapes, NaN/inf, empty clouds and out-of-range indices raise
+``ValueError``; file problems raise ``OSError``.
+
+Quick start::
+
+    import numpy as np, primfit
+    prim, point, grad = primfit.probabilistic_chamfer(cloud, samples, owner, p, cap=0.25)
+    result = primfit.fit(cloud, types=["square"], size=1.0)
+    result.primitives[0]["type"], result.existence, result.metrics
+
+The optional PyTorch integration lives in :mod:`primfit.torch` (imported on demand).
+"""
+
+from __future__ import annotations
+
+import json
+import os
+from collections.abc import Sequence
+from typing import Any
+
+import numpy as np
+import numpy.typing as npt
+
+from . import _primfit
+from ._primfit import __version__
+
+__all__ = [
+    "Candidates",
+    "ChamferProblem",
+    "FitResult",
+    "__version__",
+    "candidates",
+    "fit",
+    "probabilistic_chamfer",
+    "read_mesh",
+    "read_ply",
+    "synth",
+    "write_mesh",
+    "write_ply",
+]
+
+ArrayLike = npt.ArrayLike
+Limit = int | float | str | None
+
+
+def _numeric(name: str, x: ArrayLike, kinds: str) -> np.ndarray:
+    a = np.asarray(x)
+    if a.dtype.kind not in kinds:
+        raise TypeError(f"{name} must be a numeric array, got dtype {a.dtype}")
+    return a
+
+
+def _floats(name: str, x: ArrayLike, ndim: int) -> np.ndarray:
+    """``x`` as a C-ordered float64 array with ``ndim`` dimensions."""
+    a = _numeric(name, x, "fiu")
+    if a.ndim != ndim:
+        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {a.shape}")
+    return np.ascontiguousarray(a, dtype=np.float64)
+
+
+def _points(name: str, x: ArrayLike) -> np.ndarray:
+    """An ``(M, 3)`` float64 array (shape, emptiness and finiteness are checked in Rust)."""
+    return _floats(name, x, 2)
+
+
+def _ints(name: str, x: ArrayLike, ndim: int = 1) -> np.ndarray:
+    """``x`` as a C-ordered int64 array (integer dtypes only: floats are not truncated)."""
+    a = _numeric(name, x, "iu")
+    if a.ndim != ndim:
+        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {a.shape}")
+    if a.dtype.kind == "u" and a.size and a.max() > np.iinfo(np.int64).max:
+        raise ValueError(f"{name} has an index larger than 2**63 - 1")
+    return np.ascontiguousarray(a, dtype=np.int64)
+
+
+class ChamferProblem:
+    """The probabilistic chamfer distance of one cloud against one candidate set.
+
+    The candidates are given by explicit surface samples: ``samples`` (K, 3) with
+    ``owner`` (K,) giving each sample's candidate in ``0..n``. Every candidate needs at
+    least one sample. Coefficients (nearest distances, sorted point entries) are built
+    once here, so repeated evaluations are pure arithmetic.
+
+    Parameters
+    ----------
+    cloud : (J, 3) array
+        The input points.
+    samples : (K, 3) array
+        Candidate surface samples.
+    owner : (K,) int array
+        Candidate index of every sample, in ``0..n``.
+    n : int, optional
+        Number of candidates N (default ``max(owner) + 1``).
+    model : {"existence", "independent"}
+        Point-term model (DESIGN §2).
+    alpha, beta : int, "inf" or None
+        Samples kept per (point, candidate) (``independent`` only) and candidates kept per
+        point. ``None`` or ``"inf"`` keeps all: the exact loss.
+    cap : float
+        ``d_cap`` itself (squared units): the cost of a point no existing candidate explains.
+    weights : (float, float)
+        Weights of the primitive and point terms; gradients are of the weighted total.
+    """
+
+    def __init__(
+        self,
+        cloud: ArrayLike,
+        samples: ArrayLike,
+        owner: ArrayLike,
+        n: int | None = None,
+        *,
+        model: str = "existence",
+        alpha: Limit = None,
+        beta: Limit = None,
+        cap: float = 0.0,
+        weights: tuple[float, float] = (1.0, 1.0),
+    ) -> None:
+        self._inner = _primfit.ChamferProblem(
+            _points("cloud", cloud),
+            _points("samples", samples),
+            _ints("owner", owner),
+            n,
+            model=model,
+            alpha=alpha,
+            beta=beta,
+            cap=float(cap),
+            weights=(float(weights[0]), float(weights[1])),
+        )
+
+    @classmethod
+    def _wrap(cls, inner: _primfit.ChamferProblem) -> ChamferProblem:
+        problem = cls.__new__(cls)
+        problem._inner = inner
+        return problem
+
+    @property
+    def n_candidates(self) -> int:
+        """Number of candidates N."""
+        return self._inner.n_candidates
+
+    @property
+    def n_points(self) -> int:
+        """Number of cloud points J."""
+        return self._inner.n_points
+
+    @property
+    def n_entries(self) -> int:
+        """Number of stored (point, candidate[, sample]) entries of the point term."""
+        return self._inner.n_entries
+
+    @property
+    def weights(self) -> tuple[float, float]:
+        """``(primitive_weight, point_weight)``."""
+        return self._inner.weights
+
+    @property
+    def g(self) -> np.ndarray:
+        """Primitive-term coefficients ``g_i`` (N,): the primitive term is ``g @ p``."""
+        return self._inner.g
+
+    def evaluate(self, p: ArrayLike) -> tuple[float, float, np.ndarray]:
+        """``(primitive_term, point_term, grad)`` at probabilities ``p`` (N,).
+
+        The terms are unweighted; ``grad`` (N,) is the gradient of the weighted total
+        ``w_prim * primitive_term + w_point * point_term``.
+        """
+        return self._inner.evaluate(_floats("p", p, 1))
+
+    def evaluate_batch(self, P: ArrayLike) -> tuple[np.ndarray, np.ndarray]:
+        """Weighted totals (B,) and their gradients (B, N) for a batch ``P`` (B, N).
+
+        Rows are evaluated in parallel in Rust.
+        """
+        return self._inner.evaluate_batch(_floats("P", P, 2))
+
+    def __repr__(self) -> str:
+        return repr(self._inner)
+
+
+def probabilistic_chamfer(
+    cloud: ArrayLike,
+    samples: ArrayLike,
+    owner: ArrayLike,
+    p: ArrayLike,
+    *,
+    model: str = "existence",
+    alpha: Limit = None,
+    beta: Limit = None,
+    cap: float = 0.0,
+    weights: tuple[float, float] = (1.0, 1.0),
+) -> tuple[float, float, np.ndarray]:
+    """The probabilistic chamfer distance and its gradient (DESIGN §2), in one call.
+
+    Returns ``(primitive_term, point_term, grad)``; ``N = len(p)`` candidates, owners
+    in ``0..N``. See :class:`ChamferProblem` for the parameters; build one instead when
+    evaluating the same cloud and candidates repeatedly.
+    """
+    p = _floats("p", p, 1)
+    problem = ChamferProblem(
+        cloud, samples, owner, len(p), model=model, alpha=alpha, beta=beta, cap=cap, weights=weights
+    )
+    return problem.evaluate(p)
+
+
+class FitResult:
+    """The outcome of :func:`fit`.
+
+    Attributes
+    ----------
+    primitives : list of dict
+        The chosen primitives as in ``result.json``: ``type``, ``size``, ``pose``
+        (``translation``, ``rotation`` quaternion ``[w, x, y, z]``, ``scale``),
+        ``existence``.
+    existence : (P,) float64 array
+        Continuous existence probability of each chosen primitive.
+    metrics : dict
+        The measures of DESIGN §4 of the fit against its cloud.
+    settings : dict
+        Every setting used, defaults included.
+    """
+
+    def __init__(self, document: str, existence: np.ndarray) -> None:
+        self._document = document
+        doc = json.loads(document)
+        self.primitives: list[dict[str, Any]] = doc["primitives"]
+        self.metrics: dict[str, Any] = doc["metrics"]
+        self.settings: dict[str, Any] = doc["settings"]
+        self.existence: np.ndarray = existence
+
+    def to_json(self) -> str:
+        """The ``result.json`` document (DESIGN §3), as the CLI writes it."""
+        return self._document
+
+    def __len__(self) -> int:
+        return len(self.primitives)
+
+    def __repr__(self) -> str:
+        kinds: dict[str, int] = {}
+        for q in self.primitives:
+            kinds[q["type"]] = kinds.get(q["type"], 0) + 1
+        summary = ", ".join(f"{n} {k}" for k, n in sorted(kinds.items())) or "none"
+        return f"FitResult({len(self.primitives)} primitives: {summary})"
+
+
+def _fit_options(
+    *,
+    types: Sequence[str] | str | None = None,
+    size: float | None = None,
+    radius: float | None = None,
+    bend: float | None = None,
+    spacing: float | None = None,
+    origin: Sequence[float] | None = None,
+    sample_spacing: float | None = None,
+    model: str = "existence",
+    alpha: Limit = None,
+    beta: Limit = None,
+    cap: float | None = None,
+    weights: tuple[float, float] | None = None,
+    parameterization: str = "box",
+    max_iterations: int = 200,
+    polish: bool = True,
+    mesh_model: tuple[ArrayLike, ArrayLike] | None = None,
+    seed: int = 0,
+    memory_budget: int | None = None,
+) -> _primfit.FitOptions:
+    if isinstance(types, str):
+        types = [t.strip() for t in types.split(",") if t.strip()]
+    mesh = None
+    if mesh_model is not None:
+        vertices, faces = mesh_model
+        mesh = (_points("mesh vertices", vertices), _ints("mesh faces", faces, 2))
+    return _primfit.FitOptions(
+        types=None if types is None else list(types),
+        size=size,
+        radius=radius,
+        bend=bend,
+        spacing=spacing,
+        origin=None if origin is None else [float(v) for v in origin],
+        sample_spacing=sample_spacing,
+        model=model,
+        alpha=alpha,
+        beta=beta,
+        cap=cap,
+        weights=None if weights is None else (float(weights[0]), float(weights[1])),
+        parameterization=parameterization,
+        max_iterations=max_iterations,
+        polish=polish,
+        mesh_model=mesh,
+        seed=seed,
+        memory_budget=memory_budget,
+    )
+
+
+def fit(
+    cloud: ArrayLike,
+    *,
+    types: Sequence[str] | str | None = None,
+    size: float | None = None,
+    radius: float | None = None,
+    bend: float | None = None,
+    spacing: float | None = None,
+    origin: Sequence[float] | None = None,
+    sample_spacing: float | None = None,
+    model: str = "existence",
+    alpha: Limit = None,
+    beta: Limit = None,
+    cap: float | None = None,
+    weights: tuple[float, float] | None = None,
+    parameterization: str = "box",
+    max_iterations: int = 200,
+    polish: bool = True,
+    mesh_model: tuple[ArrayLike, ArrayLike] | None = None,
+    seed: int = 0,
+    memory_budget: int | None = None,
+) -> FitResult:
+    """Fits primitives to ``cloud`` (J, 3), as ``primfit fit`` does.
+
+    Every option mirrors the CLI flag of the same name; ``None`` derives the value from
+    the cloud (the result's ``settings`` lists what was used).
+
+    Parameters
+    ----------
+    types : list of str or comma-separated str
+        Primitive types from square, disk, cylinder, elbow, sphere, mesh (default square).
+    size, radius, bend, spacing : float
+        Candidate main extent, tube radius, elbow bend radius, lattice step (scene units).
+    origin : (3,) floats
+        A lattice point (default the origin).
+    sample_spacing : float
+        Spacing of candidate surface samples.
+    model : {"existence", "independent"}
+        Point-term model.
+    alpha, beta : int or "inf"
+        Samples per (point, candidate) and candidates per point (defaults 10 and 16).
+    cap : float
+        The distance (not squared) whose square is ``d_cap`` (default: the spacing).
+    weights : (float, float)
+        Weights of the primitive and point terms (default 1, 1).
+    parameterization : {"box", "logit"}
+        Existence parameterisation of L-BFGS.
+    max_iterations : int
+        L-BFGS iterations at most.
+    polish : bool
+        Run the discrete polish after thresholding.
+    mesh_model : (vertices (V, 3), faces (F, 3) int)
+        The triangle mesh of the ``mesh`` type (e.g. from :func:`read_mesh`).
+    seed : int
+        Seed for every random choice.
+    memory_budget : int
+        Upper bound on coefficient memory in bytes (default half the machine's memory).
+    """
+    options = _fit_options(
+        types=types, size=size, radius=radius, bend=bend, spacing=spacing, origin=origin,
+        sample_spacing=sample_spacing, model=model, alpha=alpha, beta=beta, cap=cap, weights=weights,
+        parameterization=parameterization, max_iterations=max_iterations, polish=polish,
+        mesh_model=mesh_model, seed=seed, memory_budget=memory_budget,
+    )
+    return FitResult(*_primfit.fit(_points("cloud", cloud), options))
+
+
+class Candidates:
+    """The candidate set a :func:`fit` would optimise over, as explicit samples.
+
+    Attributes
+    ----------
+    samples : (K, 3) float64 array
+        Every candidate's surface samples, in scene coordinates.
+    owner : (K,) int64 array
+        The candidate of each sample, in ``0..N``.
+    primitives : list of dict
+        The N candidates, in the ``result.json`` format.
+    settings : dict
+        Every setting the fit would use (sizes, ``cap`` as a distance, ``alpha``, ...).
+    """
+
+    def __init__(self, cloud: np.ndarray, options: _primfit.FitOptions) -> None:
+        settings, samples, owner, primitives = _primfit.candidates(cloud, options)
+        self._cloud, self._options = cloud, options
+        self.settings: dict[str, Any] = json.loads(settings)
+        self.samples: np.ndarray = samples
+        self.owner: np.ndarray = owner
+        self.primitives: list[dict[str, Any]] = json.loads(primitives)
+
+    def __len__(self) -> int:
+        return len(self.primitives)
+
+    def problem(self) -> ChamferProblem:
+        """The loss the fit minimises, as a :class:`ChamferProblem` over these candidates
+        (same model, alpha, beta, cap, weights, and distances to the candidates' exact
+        surfaces where the fit uses them), built from the lattice rather than from
+        :attr:`samples`."""
+        return ChamferProblem._wrap(_primfit.fit_problem(self._cloud, self._options))
+
+    def __repr__(self) -> str:
+        return f"Candidates({len(self)} candidates, {len(self.samples)} samples)"
+
+
+def candidates(cloud: ArrayLike, **options: Any) -> Candidates:
+    """The candidates (lattice after the occupancy prior) that ``fit(cloud, **options)``
+    would optimise over; ``options`` are those of :func:`fit`.
+
+    :meth:`Candidates.problem` gives the fit's loss, e.g. to run another optimiser on it.
+    """
+    return Candidates(_points("cloud", cloud), _fit_options(**options))
+
+
+def read_ply(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:
+    """Reads a PLY point cloud (ascii or binary; float, double or integer coordinates).
+
+    Returns a dict with ``points`` (J, 3) float64 and, when the file has them,
+    ``normals`` (J, 3) float64, ``colors`` (J, 3) uint8, ``labels`` (J,) int32 and
+    ``sensors`` (J, 3) float64 (per-point sensor origins). Points with a NaN or infinite
+    coordinate are dropped. Raises ``OSError`` (cannot open) or ``ValueError`` (not a
+    valid PLY file).
+    """
+    return _primfit.read_ply(os.fspath(path))
+
+
+def write_ply(
+    path: str | os.PathLike[str],
+    points: ArrayLike,
+    *,
+    normals: ArrayLike | None = None,
+    colors: ArrayLike | None = None,
+    labels: ArrayLike | None = None,
+    sensors: ArrayLike | None = None,
+    ascii: bool = False,
+) -> None:
+    """Writes a PLY point cloud atomically (binary little-endian unless ``ascii``).
+
+    ``points``, ``normals`` and ``sensors`` are (J, 3) and written as double; ``colors``
+    (J, 3) integers in 0..255; ``labels`` (J,) integers. :func:`read_ply` reads it back
+    exactly.
+    """
+
+    def ints(name: str, x: ArrayLike, ndim: int, dtype: type) -> np.ndarray:
+        a = _ints(name, x, ndim)
+        info = np.iinfo(dtype)
+        if a.size and (a.min() < info.min or a.max() > info.max):
+            raise ValueError(f"{name} must be in {info.min}..{info.max}")
+        return np.ascontiguousarray(a, dtype=dtype)
+
+    _primfit.write_ply(
+        os.fspath(path),
+        _points("points", points),
+        normals=None if normals is None else _points("normals", normals),
+        colors=None if colors is None else ints("colors", colors, 2, np.uint8),
+        labels=None if labels is None else ints("labels", labels, 1, np.int32),
+        sensors=None if sensors is None else _points("sensors", sensors),
+        ascii=ascii,
+    )
+
+
+def read_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
+    """Reads a PLY triangle mesh: ``(vertices (V, 3) float64, faces (F, 3) int64)``.
+
+    Polygons are fan-triangulated. The result can be passed as ``fit(mesh_model=...)``.
+    """
+    return _primfit.read_mesh(os.fspath(path))
+
+
+def write_mesh(
+    path: str | os.PathLike[str],
+    primitives: FitResult | Sequence[dict[str, Any]],
+    *,
+    ascii: bool = False,
+) -> None:
+    """Writes primitives (a :class:`FitResult` or dicts as in ``result.json``) as one
+    triangle-mesh PLY with a per-face ``primitive`` index, as ``primfit fit --mesh`` does.
+    """
+    if isinstance(primitives, FitResult):
+        primitives = primitives.primitives
+    _primfit.write_mesh(os.fspath(path), json.dumps(list(primitives)), ascii=ascii)
+
+
+from . import synth  # noqa: E402  (uses the helpers above)

@@ -1,0 +1,130 @@
+"""Type stubs of the extension module ``primfit._primfit`` (low level: use ``primfit``).
+
+Arrays must already be float64 (int64 for indices); the ``primfit`` facade converts.
+"""
+
+import os
+
+import numpy as np
+import numpy.typing as npt
+from typing import final
+
+__all__ = [
+    "ChamferProblem",
+    "FitOptions",
+    "__version__",
+    "candidates",
+    "fit",
+    "fit_problem",
+    "read_mesh",
+    "read_ply",
+    "synth_hallway",
+    "synth_nine_cylinders",
+    "synth_pipe",
+    "synth_registration",
+    "synth_six_in_a_row",
+    "write_mesh",
+    "write_ply",
+]
+
+__version__: str
+
+_F64 = npt.NDArray[np.float64]
+_I64 = npt.NDArray[np.int64]
+_Limit = int | float | str | None
+
+@final
+class ChamferProblem:
+    def __new__(
+        cls,
+        cloud: _F64,
+        samples: _F64,
+        owner: _I64,
+        n: int | None = None,
+        *,
+        model: str = "existence",
+        alpha: _Limit = None,
+        beta: _Limit = None,
+        cap: float = 0.0,
+        weights: tuple[float, float] = ...,  # (1.0, 1.0)
+    ) -> ChamferProblem: ...
+    @property
+    def n_candidates(self) -> int: ...
+    @property
+    def n_points(self) -> int: ...
+    @property
+    def n_entries(self) -> int: ...
+    @property
+    def weights(self) -> tuple[float, float]: ...
+    @property
+    def g(self) -> _F64: ...
+    def evaluate(self, p: _F64) -> tuple[float, float, _F64]: ...
+    def evaluate_batch(self, p: _F64) -> tuple[_F64, _F64]: ...
+
+@final
+class FitOptions:
+    def __new__(
+        cls,
+        *,
+        types: list[str] | None = None,
+        size: float | None = None,
+        radius: float | None = None,
+        bend: float | None = None,
+        spacing: float | None = None,
+        origin: list[float] | None = None,
+        sample_spacing: float | None = None,
+        model: str = "existence",
+        alpha: _Limit = None,
+        beta: _Limit = None,
+        cap: float | None = None,
+        weights: tuple[float, float] | None = None,
+        parameterization: str = "box",
+        max_iterations: int = 200,
+        polish: bool = True,
+        mesh_model: tuple[_F64, _I64] | None = None,
+        seed: int = 0,
+        memory_budget: int | None = None,
+    ) -> FitOptions: ...
+
+def fit(cloud: _F64, options: FitOptions) -> tuple[str, _F64]: ...
+def candidates(cloud: _F64, options: FitOptions) -> tuple[str, _F64, _I64, str]: ...
+def fit_problem(cloud: _F64, options: FitOptions) -> ChamferProblem: ...
+
+_Scene = tuple[_F64, str]
+
+def synth_hallway(
+    *, length: float = 10.0, width: float = 2.0, height: float = 2.5, side: float = 1.0, ceiling: bool = False,
+    density: float | None = None, points: int | None = None, jitter: float = 0.01, drift: float = 0.0,
+    offset: float = 0.0, angle: float = 0.0, seed: int = 0,
+) -> _Scene: ...
+def synth_pipe(
+    *, segments: int = 4, max_run: int = 3, segment_length: float = 1.0, bend: float | None = None,
+    radius: float | None = None, density: float | None = None, points: int | None = None, jitter: float = 0.005,
+    drift: float = 0.0, offset: float = 0.0, angle: float = 0.0, seed: int = 0,
+) -> _Scene: ...
+def synth_nine_cylinders(
+    *, mask: int = 511, pitch: float = 1.0, radius: float = 0.2, height: float = 1.0, density: float | None = None,
+    points: int | None = None, jitter: float = 0.01, drift: float = 0.01, offset: float = 0.0, seed: int = 0,
+) -> _Scene: ...
+def synth_six_in_a_row(
+    *, variant: str = "squares", first: float = 7.0, step: float = 1.0, true_index: int = 3, size: float = 1.0,
+    points: int = 500, jitter: float = 0.01, seed: int = 0,
+) -> _Scene: ...
+def synth_registration(
+    *, mesh: tuple[_F64, _I64] | None = None, inliers: int = 100, outliers: int = 1900, translation: float = 0.0,
+    scale: tuple[float, float] | None = None, outlier_box: float = 1.0, jitter: float = 0.0, seed: int = 0,
+) -> _Scene: ...
+
+def read_ply(path: str | os.PathLike[str]) -> dict[str, npt.NDArray[np.generic]]: ...
+def write_ply(
+    path: str | os.PathLike[str],
+    points: _F64,
+    *,
+    normals: _F64 | None = None,
+    colors: npt.NDArray[np.uint8] | None = None,
+    labels: npt.NDArray[np.int32] | None = None,
+    sensors: _F64 | None = None,
+    ascii: bool = False,
+) -> None: ...
+def read_mesh(path: str | os.PathLike[str]) -> tuple[_F64, _I64]: ...
+def write_mesh(path: str | os.PathLike[str], primitives_json: str, *, ascii: bool = False) -> None: ...

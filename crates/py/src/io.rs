@@ -1,0 +1,172 @@
+//! PLY files: clouds in and out, meshes in, fitted primitives out as one mesh.
+
+use std::path::PathBuf;
+
+use numpy::ndarray::{Array2, ArrayView2, Axis};
+use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use primfit_core::atlas::MeshShape;
+use primfit_core::fit::primitives_mesh;
+use primfit_core::io::{self, Encoding};
+use primfit_core::na::Vector3;
+use primfit_core::{Error, PointCloud, Primitive, Result};
+use pyo3::exceptions::PyValueError;
+use pyo3::prelude::*;
+use pyo3::types::PyDict;
+
+use crate::convert::{self, ToPyResult};
+use crate::pool;
+use crate::synth::points_array;
+
+/// `(vertices (V, 3), faces (F, 3))`.
+type Mesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>);
+
+fn encoding(ascii: bool) -> Encoding {
+    if ascii {
+        Encoding::Ascii
+    } else {
+        Encoding::BinaryLittleEndian
+    }
+}
+
+/// `(J, 3)` rows as fixed-size arrays (shape checked).
+fn triples<T: Copy>(name: &str, a: ArrayView2<'_, T>, rows: usize) -> PyResult<Vec<[T; 3]>> {
+    if a.shape() != [rows, 3] {
+        return Err(PyValueError::new_err(format!(
+            "{name} must have shape ({rows}, 3), got {:?}",
+            a.shape()
+        )));
+    }
+    Ok(a.axis_iter(Axis(0)).map(|r| [r[0], r[1], r[2]]).collect())
+}
+
+/// Reads a PLY point cloud: a dict with `points` (J, 3) and, when the file has them,
+/// `normals` (J, 3), `colors` (J, 3) uint8, `labels` (J,) int32, `sensors` (J, 3).
+#[pyfunction]
+pub fn read_ply<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
+    let cloud = pool::detached(py, || io::read_cloud(&path))?.py()?;
+    let out = PyDict::new(py);
+    out.set_item("points", points_array(py, &cloud.points))?;
+    if let Some(n) = &cloud.normals {
+        let flat: Vec<f64> = n.iter().flat_map(|v| [v.x, v.y, v.z]).collect();
+        out.set_item(
+            "normals",
+            Array2::from_shape_vec((n.len(), 3), flat)
+                .expect("3 per row")
+                .into_pyarray(py),
+        )?;
+    }
+    if let Some(c) = cloud.colors {
+        let len = c.len();
+        let flat: Vec<u8> = c.into_iter().flatten().collect();
+        out.set_item(
+            "colors",
+            Array2::from_shape_vec((len, 3), flat)
+                .expect("3 per row")
+                .into_pyarray(py),
+        )?;
+    }
+    if let Some(l) = cloud.labels {
+        out.set_item("labels", l.into_pyarray(py))?;
+    }
+    if let Some(s) = &cloud.sensors {
+        out.set_item("sensors", points_array(py, s))?;
+    }
+    Ok(out)
+}
+
+/// Writes a PLY point cloud (atomically): binary little-endian, or ascii.
+#[pyfunction]
+#[pyo3(signature = (path, points, *, normals=None, colors=None, labels=None, sensors=None, ascii=false))]
+#[allow(clippy::too_many_arguments)]
+pub fn write_ply(
+    py: Python<'_>,
+    path: PathBuf,
+    points: PyReadonlyArray2<'_, f64>,
+    normals: Option<PyReadonlyArray2<'_, f64>>,
+    colors: Option<PyReadonlyArray2<'_, u8>>,
+    labels: Option<PyReadonlyArray1<'_, i32>>,
+    sensors: Option<PyReadonlyArray2<'_, f64>>,
+    ascii: bool,
+) -> PyResult<()> {
+    let points = convert::points("points", &points, true)?;
+    let j = points.len();
+    let normals = match normals {
+        Some(n) => Some(
+            triples("normals", n.as_array(), j)?
+                .into_iter()
+                .map(Vector3::from)
+                .collect(),
+        ),
+        None => None,
+    };
+    let colors = match colors {
+        Some(c) => Some(triples("colors", c.as_array(), j)?),
+        None => None,
+    };
+    let labels = match labels {
+        Some(l) if l.len() != j => {
+            return Err(PyValueError::new_err(format!(
+                "labels must have shape ({j},), got {:?}",
+                l.shape()
+            )));
+        }
+        Some(l) => Some(l.as_array().to_vec()),
+        None => None,
+    };
+    let sensors = match sensors {
+        Some(s) => Some(convert::points("sensors", &s, true)?),
+        None => None,
+    };
+    let cloud = PointCloud {
+        points,
+        normals,
+        colors,
+        labels,
+        sensors,
+    };
+    pool::detached(py, || io::write_cloud(&path, &cloud, encoding(ascii)))?.py()
+}
+
+/// Reads a PLY triangle mesh: `(vertices (V, 3), faces (F, 3) int64)`.
+#[pyfunction]
+pub fn read_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Mesh<'py>> {
+    let mesh = pool::detached(py, || io::read_mesh(&path))?.py()?;
+    let faces: Vec<i64> = mesh.faces.iter().flatten().map(|&i| i64::from(i)).collect();
+    let faces = Array2::from_shape_vec((mesh.faces.len(), 3), faces).expect("3 per face");
+    Ok((points_array(py, &mesh.vertices), faces.into_pyarray(py)))
+}
+
+/// Writes primitives (a JSON list in the `result.json` format) as one triangle-mesh PLY
+/// with a per-face `primitive` index. Mesh primitives are read from their `source` file.
+#[pyfunction]
+#[pyo3(signature = (path, primitives_json, *, ascii=false))]
+pub fn write_mesh(
+    py: Python<'_>,
+    path: PathBuf,
+    primitives_json: &str,
+    ascii: bool,
+) -> PyResult<()> {
+    let doc: serde_json::Value = serde_json::from_str(primitives_json)
+        .map_err(|e| PyValueError::new_err(format!("primitives are not valid JSON: {e}")))?;
+    let list = doc
+        .as_array()
+        .ok_or_else(|| PyValueError::new_err("primitives must be a list"))?;
+    pool::detached(py, || -> Result<()> {
+        let load = |source: &str| -> Result<MeshShape> {
+            MeshShape::new(source, io::read_mesh(std::path::Path::new(source))?)
+        };
+        let prims = list
+            .iter()
+            .enumerate()
+            .map(|(k, v)| {
+                Primitive::from_json(v, &load).map_err(|e| match e {
+                    Error::Io { .. } => e,
+                    other => Error::invalid(format!("primitive {k}: {other}")),
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        let (mesh, owner) = primitives_mesh(&prims);
+        io::write_mesh(&path, &mesh, Some(&owner), encoding(ascii))
+    })?
+    .py()
+}

@@ -1,0 +1,50 @@
+//! A per-process rayon thread pool, so the bindings survive `os.fork()`.
+//!
+//! rayon's global pool is started once per process; a forked child inherits the
+//! pool's bookkeeping but none of its threads, and its first parallel call then waits
+//! forever (PyTorch's `DataLoader` forks its workers on Linux). Every call of the
+//! bindings therefore runs inside a pool owned by the current process id: a child
+//! sees a different id and builds its own pool. The parent's stale pool is leaked in
+//! the child (its threads do not exist there, so it cannot be shut down).
+
+use std::sync::{Arc, Mutex, PoisonError};
+
+use pyo3::exceptions::PyRuntimeError;
+use pyo3::prelude::*;
+use rayon::{ThreadPool, ThreadPoolBuilder};
+
+/// The pool of the process that built it.
+static POOL: Mutex<Option<(u32, Arc<ThreadPool>)>> = Mutex::new(None);
+
+/// The current process's pool, built on first use (threads: `RAYON_NUM_THREADS` or the
+/// number of cores).
+fn current() -> PyResult<Arc<ThreadPool>> {
+    let pid = std::process::id();
+    let mut slot = POOL.lock().unwrap_or_else(PoisonError::into_inner);
+    if let Some((owner, pool)) = slot.as_ref()
+        && *owner == pid
+    {
+        return Ok(Arc::clone(pool));
+    }
+    if let Some((_, stale)) = slot.take() {
+        std::mem::forget(stale);
+    }
+    let pool = ThreadPoolBuilder::new()
+        .thread_name(|i| format!("primfit-{i}"))
+        .build()
+        .map_err(|e| PyRuntimeError::new_err(format!("cannot start worker threads: {e}")))?;
+    let pool = Arc::new(pool);
+    *slot = Some((pid, Arc::clone(&pool)));
+    Ok(pool)
+}
+
+/// Runs `f` on this process's pool (call it with the GIL released).
+fn run<R: Send>(f: impl FnOnce() -> R + Send) -> PyResult<R> {
+    Ok(current()?.install(f))
+}
+
+/// Runs `f` on this process's pool with the GIL released: how every long call of the
+/// bindings runs.
+pub fn detached<R: Send>(py: Python<'_>, f: impl FnOnce() -> R + Send) -> PyResult<R> {
+    py.detach(|| run(f))
+}

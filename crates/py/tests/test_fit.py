@@ -1,0 +1,168 @@
+"""`fit`, `candidates`, and the same problem solved three ways: primfit.fit, scipy's
+L-BFGS-B on our loss, and the Rust CLI."""
+
+from __future__ import annotations
+
+import json
+import os
+import shutil
+import subprocess
+from pathlib import Path
+
+import numpy as np
+import pytest
+from conftest import require, unavailable
+
+import primfit
+
+REPO = Path(__file__).resolve().parents[3]
+
+
+def corner() -> np.ndarray:
+    """A 2 m × 2 m floor patch at z = 0 and a wall at x = 0, on a 0.5 m lattice."""
+    a = np.arange(40) * 0.05 + 0.025
+    u, v = (m.ravel() for m in np.meshgrid(a, a, indexing="ij"))
+    floor = np.stack([u, v, np.zeros_like(u)], axis=1)
+    wall = np.stack([np.zeros_like(u), u, v], axis=1)
+    return np.concatenate([floor, wall])
+
+
+def key(primitive: dict) -> tuple:
+    """A primitive's identity for comparing solutions (type, sizes, pose)."""
+    pose = primitive["pose"]
+    return (
+        primitive["type"],
+        json.dumps(primitive["size"], sort_keys=True),
+        tuple(np.round(pose["translation"], 9)),
+        tuple(np.round(pose["rotation"], 9)),
+    )
+
+
+def test_fit_result_round_trip():
+    cloud = corner()
+    result = primfit.fit(cloud, size=1.0)
+    assert len(result) == len(result.primitives) >= 8
+    assert result.existence.shape == (len(result.primitives),)
+    assert result.existence.dtype == np.float64
+    for q, e in zip(result.primitives, result.existence):
+        assert q["type"] == "square" and q["size"] == {"side": 1.0}
+        assert q["existence"] == pytest.approx(e)
+        assert set(q["pose"]) == {"translation", "rotation", "scale"}
+    doc = json.loads(result.to_json())
+    assert set(doc) == {"primfit", "settings", "metrics", "primitives"}
+    assert doc["primfit"] == primfit.__version__
+    assert doc["primitives"] == result.primitives
+    assert doc["settings"] == result.settings
+    assert result.settings["size"] == 1.0 and result.settings["spacing"] == 0.5
+    # Every point lies on the fitted squares.
+    assert result.metrics["point_to_model_max"] < 1e-9
+    assert "square" in repr(result)
+
+
+def test_fit_options_reach_the_core():
+    cloud = corner()
+    result = primfit.fit(
+        cloud, types="square", size=1.0, spacing=0.5, model="independent", alpha=5, beta=3,
+        cap=0.4, weights=(1.0, 2.0), parameterization="logit", max_iterations=50, seed=7,
+        origin=(0, 0, 0),
+    )
+    s = result.settings
+    assert (s["model"], s["alpha"], s["beta"], s["cap"]) == ("independent", 5, 3, 0.4)
+    assert (s["weights"], s["parameterization"], s["max_iterations"], s["seed"]) == ([1.0, 2.0], "logit", 50, 7)
+    assert s["types"] == ["square"]
+    unlimited = primfit.fit(cloud, size=1.0, beta="inf", alpha=float("inf")).settings
+    assert (unlimited["alpha"], unlimited["beta"]) == ("inf", "inf")
+
+
+def test_fit_is_deterministic_and_float32_gives_the_same_answer():
+    cloud = corner()
+    a = primfit.fit(cloud, size=1.0)
+    b = primfit.fit(cloud.astype(np.float32), size=1.0)  # rounded points, same lattice
+    c = primfit.fit(cloud, size=1.0)
+    assert a.to_json() == c.to_json()
+    assert [key(q) for q in b.primitives] == [key(q) for q in a.primitives]
+
+
+def test_mesh_type_with_an_array_mesh():
+    # A unit square (two triangles) as the `mesh` type: fits the floor like a square.
+    vertices = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], dtype=float)
+    faces = np.array([[0, 1, 2], [0, 2, 3]])
+    cloud = corner()[:1600]  # the floor only
+    result = primfit.fit(cloud, types=["mesh"], mesh_model=(vertices, faces), size=1.0, spacing=0.5)
+    assert result.primitives and all(q["type"] == "mesh" for q in result.primitives)
+    assert result.metrics["point_to_model_mean"] < 0.01
+
+
+def test_candidates_reproduce_the_fit_loss():
+    cloud = corner()
+    cands = primfit.candidates(cloud, size=1.0)
+    n = len(cands)
+    assert n > 8 and cands.samples.shape[1] == 3 and cands.owner.shape == (len(cands.samples),)
+    assert set(np.unique(cands.owner)) == set(range(n))
+    assert cands.settings["size"] == 1.0
+    problem = cands.problem()
+    assert problem.n_candidates == n and problem.n_points == len(cloud)
+
+
+def test_scipy_lbfgsb_on_our_loss_reaches_the_fit_solution():
+    optimize = require("scipy.optimize")
+    rng = np.random.default_rng(3)
+    cloud = corner() + rng.normal(0.0, 0.005, (3200, 3))
+    options = dict(size=1.0)
+    cands = primfit.candidates(cloud, **options)
+    problem = cands.problem()
+    w_prim, w_point = problem.weights
+
+    def loss(p):
+        prim, point, grad = problem.evaluate(p)
+        return w_prim * prim + w_point * point, grad
+
+    n = len(cands)
+    x, _, info = optimize.fmin_l_bfgs_b(loss, np.full(n, 0.5), bounds=[(0.0, 1.0)] * n, maxiter=500)
+    assert info["warnflag"] == 0, info
+    ours = sorted(key(cands.primitives[i]) for i in np.flatnonzero(x > 0.5))
+
+    fitted = primfit.fit(cloud, polish=False, **options)
+    assert sorted(key(q) for q in fitted.primitives) == ours
+    assert len(ours) == 8
+    polished = primfit.fit(cloud, **options)
+    assert sorted(key(q) for q in polished.primitives) == ours
+
+
+def cli_binary() -> Path:
+    """The `primfit` CLI: $PRIMFIT_CLI, or built from this checkout with cargo."""
+    if "PRIMFIT_CLI" in os.environ:
+        return Path(os.environ["PRIMFIT_CLI"])
+    cargo = shutil.which("cargo")
+    if cargo is None or not (REPO / "crates" / "cli").is_dir():
+        unavailable("no primfit CLI: set PRIMFIT_CLI or run from a checkout with cargo")
+    # The test profile reuses what `cargo test --workspace` (scripts/test.sh) built.
+    build = subprocess.run(
+        [cargo, "build", "--profile", "test", "-p", "primfit-cli", "--locked", "-q"],
+        cwd=REPO, capture_output=True, text=True,
+    )
+    if build.returncode != 0:
+        unavailable(f"the primfit CLI does not build: {build.stderr.strip()[-400:]}")
+    target = Path(os.environ.get("CARGO_TARGET_DIR", REPO / "target"))
+    return target / "debug" / "primfit"
+
+
+def test_cli_fit_gives_the_same_result(tmp_path):
+    cli = cli_binary()
+    rng = np.random.default_rng(5)
+    cloud = corner() + rng.normal(0.0, 0.003, (3200, 3))
+    scene = tmp_path / "corner.ply"
+    primfit.write_ply(scene, cloud)
+    out = tmp_path / "result.json"
+    run = subprocess.run(
+        [str(cli), "fit", str(scene), "-o", str(out), "--size", "1", "--quiet"], capture_output=True, text=True
+    )
+    assert run.returncode == 0, run.stderr
+    doc = json.loads(out.read_text())
+    ours = primfit.fit(primfit.read_ply(scene)["points"], size=1.0)
+    assert [key(q) for q in doc["primitives"]] == [key(q) for q in ours.primitives]
+    np.testing.assert_allclose([q["existence"] for q in doc["primitives"]], ours.existence, rtol=1e-12)
+    settings = {k: v for k, v in doc["settings"].items() if k != "scene"}
+    assert settings == ours.settings
+    for name, value in ours.metrics.items():
+        assert doc["metrics"][name] == pytest.approx(value, rel=1e-9), name
