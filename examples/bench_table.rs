@@ -19,7 +19,8 @@
 //! Options of the parent: `--scenes a,b,…` (default: [`DEFAULT_SCENES`]), `--threads N`
 //! (default: all cores; 1 thread is always measured too), `--numpy PYTHON`,
 //! `--numpy-timeout SECONDS` (default 900), `--numpy-scenes a,b,…`, `--work DIR`,
-//! `--json FILE` (raw measurements).
+//! `--json FILE` (raw measurements). `PRIMFIT_BENCH_MEMORY_BUDGET=BYTES` overrides the
+//! fitter's memory budget (default: half the machine's memory) in every child.
 
 #[path = "../benches/common/mod.rs"]
 mod common;
@@ -140,7 +141,14 @@ fn run_child(scene: BenchScene, threads: usize) -> Value {
     pool.install(|| {
         let timer = StageTimer::new();
         let (t, cpu) = (Instant::now(), cpu_seconds());
-        let result = fit(&cloud, &scene.options(), &timer);
+        let mut options = scene.options();
+        if let Some(b) = std::env::var("PRIMFIT_BENCH_MEMORY_BUDGET")
+            .ok()
+            .and_then(|b| b.parse().ok())
+        {
+            options.memory_budget = Some(b);
+        }
+        let result = fit(&cloud, &options, &timer);
         let total = t.elapsed().as_secs_f64();
         let cpu = cpu_seconds() - cpu;
         let mut v = json!({
@@ -179,6 +187,7 @@ fn fill(v: &mut Value, r: &FitResult, timer: &StageTimer, total: f64, metrics: f
     v["entries"] = json!(s.entries);
     v["bytes_per_entry"] = json!(s.bytes_per_entry);
     v["coefficient_bytes"] = json!(s.coefficient_bytes);
+    v["estimated_bytes"] = json!(s.estimated_bytes);
     v["iterations"] = json!(r.solution.iterations);
     v["evaluations"] = json!(r.solution.evaluations);
     v["flips"] = json!(r.solution.flips);
@@ -423,7 +432,7 @@ fn ratio(a: Option<f64>, b: Option<f64>) -> String {
 fn table(rows: &[(Value, Value, Value)], threads: usize) -> String {
     let mut t = String::new();
     t.push_str(&format!(
-        "| scene | model | points | candidates | entries | B/entry | coefficients | per iteration | iterations (evals) | total ({threads} thr) | CPU time | total (1 thr) | speed-up {threads}/1 | peak RSS | point→model mean | NumPy total | NumPy RSS | NumPy point→model | vs NumPy |\n"
+        "| scene | model | points | candidates | entries | B/entry | coefficients | per iteration | iterations (evals) | total ({threads} thr) | CPU time | total (1 thr) | speed-up {threads}/1 | peak RSS (estimate) | point→model mean | NumPy total | NumPy RSS | NumPy point→model | vs NumPy |\n"
     ));
     t.push_str("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (r, one, np) in rows {
@@ -457,6 +466,11 @@ fn table(rows: &[(Value, Value, Value)], threads: usize) -> String {
         } else {
             secs(&np["total_seconds"])
         };
+        let peak = format!(
+            "{} ({})",
+            bytes(&r["peak_rss"]),
+            bytes(&r["estimated_bytes"])
+        );
         let np_mean = np["point_to_model_mean"]
             .as_f64()
             .map_or("—".into(), |m| format!("{m:.4} m"));
@@ -476,7 +490,7 @@ fn table(rows: &[(Value, Value, Value)], threads: usize) -> String {
             secs(&r["fit_cpu_seconds"]),
             secs(&one["seconds"]["fit"]),
             ratio(total1, total),
-            bytes(&r["peak_rss"]),
+            peak,
             r["point_to_model_mean"].as_f64().unwrap_or(f64::NAN),
             np_cell,
             bytes(&np["peak_rss"]),
