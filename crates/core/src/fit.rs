@@ -384,10 +384,11 @@ pub fn primitives_mesh(primitives: &[Primitive]) -> (TriMesh, Vec<i32>) {
 ///   plus a row offset), held from the build to the end;
 /// * plus the larger of two transients: the build's per-chunk rows, copied into the
 ///   final arrays (`12·E`), and the polish's per-candidate transpose (16 bytes per
-///   distinct (point, candidate), up to twice that for `Vec` growth: `32·U`).
+///   distinct (point, candidate): `16·U`);
+/// * plus [`BYTES_PER_POINT`] for the cloud, its KD-tree and per-point solver state.
 ///
-/// Measured on the 100k and 1M hallways (existence model, β = 32): the peak RSS is 85 %
-/// of this estimate; the coefficients alone are a third of it.
+/// The benchmark table (`scripts/bench.sh`) prints this estimate next to the measured
+/// peak RSS of every scene.
 pub fn estimate_bytes(
     points: usize,
     candidates: usize,
@@ -402,9 +403,14 @@ pub fn estimate_bytes(
         };
     let per_entry = Coefficients::BYTES_PER_ENTRY as u64;
     let coefficients = entries * per_entry + 8;
-    let transient = (entries * per_entry).max(32 * distinct);
-    points as u64 * (coefficients + transient)
+    let transient = (entries * per_entry).max(16 * distinct);
+    points as u64 * (coefficients + transient + BYTES_PER_POINT)
 }
+
+/// Bytes per input point besides the coefficients in [`estimate_bytes`]: the cloud
+/// (24), the KD-tree built over it for the settings and the primitive term (2 × ~28),
+/// and the polish's per-point owner and cost (12).
+pub const BYTES_PER_POINT: u64 = 96;
 
 /// The exact binary chamfer of a primitive set against `cloud` under `settings` (samples
 /// at `settings.sample_spacing`, all primitives existing, no α/β truncation):
