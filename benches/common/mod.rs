@@ -34,6 +34,9 @@ pub struct BenchScene {
     pub points: usize,
     /// Point-term model of the fit.
     pub model: PointModel,
+    /// Whether the fit runs the discrete polish's sweeps (`-nopolish` in the name: no
+    /// sweeps, but the polish state, and so the memory peak, is still built).
+    pub polish: bool,
 }
 
 impl BenchScene {
@@ -43,6 +46,7 @@ impl BenchScene {
             kind,
             points,
             model,
+            polish: true,
         }
     }
 
@@ -56,11 +60,16 @@ impl BenchScene {
             PointModel::Existence => "",
             PointModel::Independent => "-indep",
         };
-        format!("{kind}-{}{model}", count_label(self.points))
+        let polish = if self.polish { "" } else { "-nopolish" };
+        format!("{kind}-{}{model}{polish}", count_label(self.points))
     }
 
     /// Parses a [`BenchScene::name`].
     pub fn parse(name: &str) -> Option<Self> {
+        let (name, polish) = match name.strip_suffix("-nopolish") {
+            Some(r) => (r, false),
+            None => (name, true),
+        };
         let (rest, model) = match name.strip_suffix("-indep") {
             Some(r) => (r, PointModel::Independent),
             None => (name, PointModel::Existence),
@@ -71,7 +80,8 @@ impl BenchScene {
             "hallway" => Kind::Hallway,
             _ => return None,
         };
-        Some(BenchScene::new(kind, parse_count(count)?, model))
+        let scene = BenchScene::new(kind, parse_count(count)?, model);
+        Some(BenchScene { polish, ..scene })
     }
 
     /// The input cloud (seed 0).
@@ -96,12 +106,15 @@ impl BenchScene {
 
     /// The fitter's default options with this scene's lattice flags.
     pub fn options(&self) -> FitOptions {
-        let base = FitOptions {
+        let mut base = FitOptions {
             model: self.model,
             size: Some(1.0),
             spacing: Some(0.5),
             ..Default::default()
         };
+        if !self.polish {
+            base.solver.max_polish_sweeps = 0;
+        }
         match self.kind {
             // `--types cylinder,elbow --size 1 --radius 0.1 --bend 0.5 --spacing 0.5`
             Kind::Pipe => FitOptions {
