@@ -407,6 +407,18 @@ pub fn estimate_bytes(
     points as u64 * (coefficients + transient + BYTES_PER_POINT)
 }
 
+/// `1.3 GiB`, `250 MiB`, `12 KiB`.
+fn human_bytes(b: u64) -> String {
+    let b = b as f64;
+    if b >= (1u64 << 30) as f64 {
+        format!("{:.1} GiB", b / (1u64 << 30) as f64)
+    } else if b >= (1u64 << 20) as f64 {
+        format!("{:.0} MiB", b / (1u64 << 20) as f64)
+    } else {
+        format!("{:.0} KiB", b / 1024.0)
+    }
+}
+
 /// Bytes per input point besides the coefficients in [`estimate_bytes`]: the cloud
 /// (24), the KD-tree built over it for the settings and the primitive term (2 × ~28),
 /// and the polish's per-point owner and cost (12).
@@ -469,8 +481,8 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     );
     if need > settings.memory_budget {
         return Err(Error::TooLarge(format!(
-            "{} points × {} candidates (β = {}) would need about {:.1} GiB at peak, over the \
-             memory budget of {:.1} GiB (by default half the machine's memory); lower --beta, \
+            "{} points × {} candidates (β = {}) would need about {} at peak, over the \
+             memory budget of {} (by default half the machine's memory); lower --beta, \
              use a coarser --spacing, subsample the cloud, or raise the budget \
              (memory_budget in the Python API)",
             cloud.len(),
@@ -479,8 +491,8 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
                 .chamfer
                 .beta
                 .map_or("all".to_string(), |b| b.to_string()),
-            need as f64 / (1u64 << 30) as f64,
-            settings.memory_budget as f64 / (1u64 << 30) as f64
+            human_bytes(need),
+            human_bytes(settings.memory_budget)
         )));
     }
     progress.message(&format!(
@@ -610,10 +622,11 @@ mod tests {
             beta: Some(32),
             ..Default::default()
         };
-        // 12 B per entry + 8 B offset, plus the polish transpose (32 B per candidate).
+        // 12 B per entry + 8 B offset, plus the polish transpose (16 B per candidate).
+        let base = BYTES_PER_POINT;
         assert_eq!(
             estimate_bytes(1, 5000, 256, &existence),
-            32 * 12 + 8 + 32 * 32
+            32 * 12 + 8 + 32 * 16 + base
         );
         let independent = ChamferOptions {
             model: PointModel::Independent,
@@ -621,11 +634,14 @@ mod tests {
             ..existence.clone()
         };
         // 320 entries: the build's copy of them outweighs the transpose.
-        assert_eq!(estimate_bytes(1, 5000, 256, &independent), 2 * 320 * 12 + 8);
+        assert_eq!(
+            estimate_bytes(1, 5000, 256, &independent),
+            2 * 320 * 12 + 8 + base
+        );
         // Fewer candidates than β: every candidate is an entry.
         assert_eq!(
             estimate_bytes(2, 3, 256, &existence),
-            2 * (3 * 12 + 8 + 3 * 32)
+            2 * (3 * 12 + 8 + 3 * 16 + base)
         );
 
         let c = corner();
