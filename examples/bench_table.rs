@@ -434,9 +434,9 @@ fn ratio(a: Option<f64>, b: Option<f64>) -> String {
 fn table(rows: &[(Value, Value, Value)], threads: usize) -> String {
     let mut t = String::new();
     t.push_str(&format!(
-        "| scene | model | points | candidates | entries | B/entry | coefficients | per iteration | iterations (evals) | total ({threads} thr) | CPU time | total (1 thr) | speed-up {threads}/1 | peak RSS (estimate) | point→model mean | NumPy total | NumPy RSS | NumPy point→model | vs NumPy |\n"
+        "| scene | model | points | candidates | entries | B/entry | coefficients | per iteration | iterations (evals) | total ({threads} thr) | CPU time | total (1 thr) | speed-up {threads}/1 | peak RSS (estimate) | point→model mean | NumPy total | NumPy CPU | NumPy RSS | NumPy point→model | vs NumPy (wall) | vs NumPy (CPU) |\n"
     ));
-    t.push_str("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
+    t.push_str("|---|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|---:|\n");
     for (r, one, np) in rows {
         let s = &r["seconds"];
         if r.get("refused").is_some() || r.get("error").is_some() {
@@ -446,7 +446,7 @@ fn table(rows: &[(Value, Value, Value)], threads: usize) -> String {
                 "error"
             };
             t.push_str(&format!(
-                "| {} | {} | {} | {why} (see below) | | | | | | | | | | {} | | | | | |\n",
+                "| {} | {} | {} | {why} (see below) | | | | | | | | | | {} | | | | | | | |\n",
                 r["scene"].as_str().unwrap_or("?"),
                 r["model"].as_str().unwrap_or("?"),
                 count(&r["points"]),
@@ -477,7 +477,7 @@ fn table(rows: &[(Value, Value, Value)], threads: usize) -> String {
             .as_f64()
             .map_or("—".into(), |m| format!("{m:.4} m"));
         t.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {} | {} | {} | {} | {} | {:.4} m | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {} | {} | {} | {} | {} | {:.4} m | {} | {} | {} | {} | {} | {} |\n",
             r["scene"].as_str().unwrap_or("?"),
             r["model"].as_str().unwrap_or("?"),
             count(&r["points"]),
@@ -495,9 +495,11 @@ fn table(rows: &[(Value, Value, Value)], threads: usize) -> String {
             peak,
             r["point_to_model_mean"].as_f64().unwrap_or(f64::NAN),
             np_cell,
+            secs(&np["cpu_seconds"]),
             bytes(&np["peak_rss"]),
             np_mean,
             ratio(np_total, total),
+            ratio(np["cpu_seconds"].as_f64(), r["fit_cpu_seconds"].as_f64()),
         ));
     }
     t
