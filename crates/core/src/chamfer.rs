@@ -208,12 +208,25 @@ impl Coefficients {
 
         progress.start("point term", cloud.len() as u64);
         let centres = CentreIndex::new(geometry);
+        // Entries per row when β bounds them (β candidates × at most α samples); 0 = unknown
+        // or too large to reserve blindly.
+        let row_bound = options.beta.map_or(0, |b| {
+            b.min(n).saturating_mul(match options.model {
+                PointModel::Existence => 1,
+                PointModel::Independent => options.alpha.unwrap_or(0),
+            })
+        });
+        let row_bound = if row_bound <= 4096 { row_bound } else { 0 };
         let rows: Vec<(Vec<usize>, Vec<u32>, Vec<f64>)> = cloud
             .par_chunks(BUILD_CHUNK)
             .map(|chunk| {
                 let mut builder = RowBuilder::new(geometry, &centres, options);
                 let mut lens = Vec::with_capacity(chunk.len());
-                let (mut c, mut d) = (Vec::new(), Vec::new());
+                // Reserving the bound up front avoids up to 2× growth slack per chunk: the
+                // chunks coexist with the final arrays while they are copied (the build's
+                // peak; 11 GB measured at 10M hallway points without this).
+                let reserve = chunk.len() * row_bound;
+                let (mut c, mut d) = (Vec::with_capacity(reserve), Vec::with_capacity(reserve));
                 for y in chunk {
                     let before = c.len();
                     builder.push_row(y, &mut c, &mut d);

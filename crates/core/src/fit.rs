@@ -61,7 +61,8 @@ pub struct FitOptions {
     pub mesh: Option<MeshShape>,
     /// Solver settings.
     pub solver: SolverOptions,
-    /// Upper bound on the coefficient memory, bytes (default: half the machine's memory).
+    /// Upper bound on the estimated peak memory of the fit ([`estimate_bytes`]), bytes
+    /// (default: half the machine's memory).
     pub memory_budget: Option<u64>,
     /// Seed for every random choice (the chamfer fit itself is deterministic).
     pub seed: u64,
@@ -114,7 +115,7 @@ pub struct Settings {
     pub solver: SolverOptions,
     /// Seed.
     pub seed: u64,
-    /// Memory budget for coefficients, bytes.
+    /// Budget for the estimated peak memory of a fit, bytes ([`estimate_bytes`]).
     pub memory_budget: u64,
     /// Mesh source, if the mesh type is used.
     pub mesh: Option<MeshShape>,
@@ -352,6 +353,8 @@ pub struct FitStats {
     pub bytes_per_entry: usize,
     /// Bytes held by the coefficients.
     pub coefficient_bytes: usize,
+    /// The peak estimate checked against the memory budget ([`estimate_bytes`]).
+    pub estimated_bytes: u64,
     /// Seconds spent building the lattice.
     pub lattice_seconds: f64,
     /// Seconds spent building coefficients.
@@ -422,20 +425,55 @@ pub fn primitives_mesh(primitives: &[Primitive]) -> (TriMesh, Vec<i32>) {
     (mesh, owner)
 }
 
-/// Estimated coefficient bytes for `points` points under `chamfer` with `candidates` candidates.
+/// Estimated **peak** bytes of a fit of `points` points under `chamfer` with `candidates`
+/// candidates (at most `max_samples` samples each), for the memory-budget check.
+///
+/// Per point, with `E` entries (`β`, or `β·α` for the independent model) and `U ≤ β`
+/// distinct candidates:
+///
+/// * the coefficients themselves: `12·E + 8` bytes ([`Coefficients::BYTES_PER_ENTRY`]
+///   plus a row offset), held from the build to the end;
+/// * plus the larger of two transients: the build's per-chunk rows, copied into the
+///   final arrays (`12·E`), and the polish's per-candidate transpose (16 bytes per
+///   distinct (point, candidate): `16·U`);
+/// * plus [`BYTES_PER_POINT`] for the cloud, its KD-tree and per-point solver state.
+///
+/// The benchmark table (`scripts/bench.sh`) prints this estimate next to the measured
+/// peak RSS of every scene.
 pub fn estimate_bytes(
     points: usize,
     candidates: usize,
     max_samples: usize,
     chamfer: &ChamferOptions,
 ) -> u64 {
-    let per_point = chamfer.beta.unwrap_or(candidates).min(candidates) as u64
+    let distinct = chamfer.beta.unwrap_or(candidates).min(candidates) as u64;
+    let entries = distinct
         * match chamfer.model {
             PointModel::Existence => 1,
             PointModel::Independent => chamfer.alpha.unwrap_or(max_samples).min(max_samples) as u64,
         };
-    points as u64 * (per_point * Coefficients::BYTES_PER_ENTRY as u64 + 8)
+    let per_entry = Coefficients::BYTES_PER_ENTRY as u64;
+    let coefficients = entries * per_entry + 8;
+    let transient = (entries * per_entry).max(16 * distinct);
+    points as u64 * (coefficients + transient + BYTES_PER_POINT)
 }
+
+/// `1.3 GiB`, `250 MiB`, `12 KiB`.
+fn human_bytes(b: u64) -> String {
+    let b = b as f64;
+    if b >= (1u64 << 30) as f64 {
+        format!("{:.1} GiB", b / (1u64 << 30) as f64)
+    } else if b >= (1u64 << 20) as f64 {
+        format!("{:.0} MiB", b / (1u64 << 20) as f64)
+    } else {
+        format!("{:.0} KiB", b / 1024.0)
+    }
+}
+
+/// Bytes per input point besides the coefficients in [`estimate_bytes`]: the cloud
+/// (24), the KD-tree built over it for the settings and the primitive term (2 × ~28),
+/// and the polish's per-point owner and cost (12).
+pub const BYTES_PER_POINT: u64 = 96;
 
 /// The exact binary chamfer of a primitive set against `cloud` under `settings` (samples
 /// at `settings.sample_spacing`, all primitives existing, no α/β truncation):
@@ -494,12 +532,18 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     );
     if need > settings.memory_budget {
         return Err(Error::TooLarge(format!(
-            "{} points × {} candidates would need about {:.1} GiB of coefficients (budget {:.1} GiB); \
-             lower --beta, use a coarser --spacing, or subsample the cloud",
+            "{} points × {} candidates (β = {}) would need about {} at peak, over the \
+             memory budget of {} (by default half the machine's memory); lower --beta, \
+             use a coarser --spacing, subsample the cloud, or raise the budget \
+             (memory_budget in the Python API)",
             cloud.len(),
             candidates.len(),
-            need as f64 / (1u64 << 30) as f64,
-            settings.memory_budget as f64 / (1u64 << 30) as f64
+            settings
+                .chamfer
+                .beta
+                .map_or("all".to_string(), |b| b.to_string()),
+            human_bytes(need),
+            human_bytes(settings.memory_budget)
         )));
     }
     progress.message(&format!(
@@ -533,6 +577,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         entries: coeffs.entries(),
         bytes_per_entry: Coefficients::BYTES_PER_ENTRY,
         coefficient_bytes: coeffs.bytes(),
+        estimated_bytes: need,
         lattice_seconds,
         coefficient_seconds,
         solve_seconds,
@@ -620,5 +665,60 @@ mod tests {
             ..Default::default()
         };
         assert!(matches!(fit(&c, &tiny, &Silent), Err(Error::TooLarge(_))));
+    }
+
+    #[test]
+    fn memory_budget_covers_the_peak_and_names_the_settings() {
+        let existence = ChamferOptions {
+            beta: Some(32),
+            ..Default::default()
+        };
+        // 12 B per entry + 8 B offset, plus the polish transpose (16 B per candidate).
+        let base = BYTES_PER_POINT;
+        assert_eq!(
+            estimate_bytes(1, 5000, 256, &existence),
+            32 * 12 + 8 + 32 * 16 + base
+        );
+        let independent = ChamferOptions {
+            model: PointModel::Independent,
+            alpha: Some(10),
+            ..existence.clone()
+        };
+        // 320 entries: the build's copy of them outweighs the transpose.
+        assert_eq!(
+            estimate_bytes(1, 5000, 256, &independent),
+            2 * 320 * 12 + 8 + base
+        );
+        // Fewer candidates than β: every candidate is an entry.
+        assert_eq!(
+            estimate_bytes(2, 3, 256, &existence),
+            2 * (3 * 12 + 8 + 3 * 16 + base)
+        );
+
+        let c = corner();
+        let fitted = fit(&c, &FitOptions::default(), &Silent).unwrap();
+        let need = fitted.stats.estimated_bytes;
+        assert!(need >= fitted.stats.coefficient_bytes as u64);
+        let just_under = FitOptions {
+            memory_budget: Some(need - 1),
+            ..Default::default()
+        };
+        let Err(Error::TooLarge(msg)) = fit(&c, &just_under, &Silent) else {
+            panic!("a budget below the estimate must refuse");
+        };
+        for hint in [
+            "--beta",
+            "--spacing",
+            "subsample",
+            "memory_budget",
+            "budget",
+        ] {
+            assert!(msg.contains(hint), "{msg:?} does not mention {hint}");
+        }
+        let exact = FitOptions {
+            memory_budget: Some(need),
+            ..Default::default()
+        };
+        assert!(fit(&c, &exact, &Silent).is_ok());
     }
 }
