@@ -177,7 +177,7 @@ class PointNet2(nn.Module):
         centres: tuple[int, int] = (32, 8),
         radii: tuple[float, float] = (0.3, 0.8),
         k: int = 16,
-        dropout: float = 0.3,
+        dropout: float = 0.1,
     ) -> None:
         super().__init__()
         if head not in ("existence", "logits"):

@@ -33,6 +33,8 @@ from .torch import chamfer_loss
 
 __all__ = [
     "ARCHS",
+    "DEFAULT_LR",
+    "DEFAULT_WIDTH",
     "LOSSES",
     "SPLITS",
     "Scores",
@@ -47,6 +49,10 @@ __all__ = [
 ]
 
 ARCHS = ("local", "pointnet2")
+#: Width multiplier per architecture (sized for a 2-core CPU, see the README).
+DEFAULT_WIDTH = {"local": 1.0, "pointnet2": 0.5}
+#: Adam step per architecture (the thesis gives none; these train fastest in 40 epochs).
+DEFAULT_LR = {"local": 3e-3, "pointnet2": 1e-2}
 LOSSES = ("chamfer", "ce")
 SPLITS: dict[str, Callable[[], np.ndarray]] = {
     "all": nine.all_masks,
@@ -67,10 +73,12 @@ class TrainConfig:
         the thesis's :class:`~primfit.nn.PointNet2`.
     loss : {"chamfer", "ce"}
         Self-supervised probabilistic chamfer, or the 512-class cross-entropy baseline.
-    epochs, batch_size, lr : int, int, float
-        Adam for ``epochs`` passes over the training scenes.
-    width : float
-        Layer-width multiplier of the network.
+    epochs, batch_size : int
+        Adam for ``epochs`` passes over the training scenes in batches.
+    lr : float or None
+        Adam's step (``None``: :data:`DEFAULT_LR` of the architecture).
+    width : float or None
+        Layer-width multiplier of the network (``None``: :data:`DEFAULT_WIDTH`).
     seed : int
         Seed of the weights and the batch order.
     """
@@ -79,8 +87,8 @@ class TrainConfig:
     loss: str = "chamfer"
     epochs: int = 40
     batch_size: int = 32
-    lr: float = 1e-3
-    width: float = 1.0
+    lr: float | None = None
+    width: float | None = None
     seed: int = 0
 
     def __post_init__(self) -> None:
@@ -90,6 +98,17 @@ class TrainConfig:
             raise ValueError(f"loss must be one of {LOSSES}, got {self.loss!r}")
         if self.loss == "ce" and self.arch != "pointnet2":
             raise ValueError("the cross-entropy baseline classifies subsets: arch must be 'pointnet2'")
+
+
+    @property
+    def learning_rate(self) -> float:
+        """Adam's step (the default resolved)."""
+        return DEFAULT_LR[self.arch] if self.lr is None else self.lr
+
+    @property
+    def layer_width(self) -> float:
+        """The width multiplier (the default resolved)."""
+        return DEFAULT_WIDTH[self.arch] if self.width is None else self.width
 
 
 @dataclass(frozen=True)
@@ -119,10 +138,12 @@ def build_model(config: TrainConfig, spec: SceneSpec = SceneSpec()) -> nn.Module
     """The network of ``config``, seeded with ``config.seed``."""
     torch.manual_seed(config.seed)
     if config.arch == "local":
-        return LocalExistence(nine.candidate_centres(spec), radius=0.7 * spec.pitch, scale=spec.pitch, width=config.width)
+        return LocalExistence(
+            nine.candidate_centres(spec), radius=0.7 * spec.pitch, scale=spec.pitch, width=config.layer_width
+        )
     n_out = N_SUBSETS if config.loss == "ce" else N_CANDIDATES
     head = "logits" if config.loss == "ce" else "existence"
-    return PointNet2(n_out, head=head, width=config.width, radii=(0.3 * spec.pitch, 0.8 * spec.pitch))
+    return PointNet2(n_out, head=head, width=config.layer_width, radii=(0.3 * spec.pitch, 0.8 * spec.pitch))
 
 
 def _batches(n: int, size: int, generator: torch.Generator) -> list[Tensor]:
@@ -157,7 +178,7 @@ def train(
     device = device or default_device()
     model.to(device).train()
     clouds = torch.as_tensor(scenes.clouds, device=device)
-    opt = torch.optim.Adam(model.parameters(), lr=config.lr)
+    opt = torch.optim.Adam(model.parameters(), lr=config.learning_rate)
     generator = torch.Generator().manual_seed(config.seed)
     history = []
     for epoch in range(config.epochs):
@@ -217,11 +238,12 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--loss", default=d.loss, choices=LOSSES)
     p.add_argument("--epochs", type=int, default=d.epochs)
     p.add_argument("--batch-size", type=int, default=d.batch_size)
-    p.add_argument("--lr", type=float, default=d.lr)
-    p.add_argument("--width", type=float, default=d.width)
+    p.add_argument("--lr", type=float, help=f"Adam step (default {DEFAULT_LR})")
+    p.add_argument("--width", type=float, help=f"layer-width multiplier (default {DEFAULT_WIDTH})")
     p.add_argument("--points", type=int, default=s.points, help="points per scene")
     p.add_argument("--offset", type=float, default=0.0, help="largest alignment offset of the test scenes (pitches)")
     p.add_argument("--seed", type=int, default=d.seed)
+    p.add_argument("--threads", type=int, help="torch CPU threads (default torch's; 1 is often fastest on a small CPU)")
     p.add_argument("--save", help="write the trained weights here (torch.save of the state dict)")
     return p
 
@@ -229,6 +251,8 @@ def _parser() -> argparse.ArgumentParser:
 def main(argv: Sequence[str] | None = None) -> Scores:
     """Trains one network and prints its scores on the test split."""
     a = _parser().parse_args(argv)
+    if a.threads:
+        torch.set_num_threads(a.threads)
     config = TrainConfig(a.arch, a.loss, a.epochs, a.batch_size, a.lr, a.width, a.seed)
     spec = SceneSpec(points=a.points)
     train_masks, test_masks = split_masks(a.train), split_masks(a.test)
@@ -241,7 +265,8 @@ def main(argv: Sequence[str] | None = None) -> Scores:
         seed=a.seed * 1_000_000 + 500_000, problems=False,
     )
     model = build_model(config, spec)
-    print(f"{asdict(config)}; {len(train_set)} training scenes ({a.train}), {len(test_set)} test ({a.test})")
+    settings = {**asdict(config), "lr": config.learning_rate, "width": config.layer_width}
+    print(f"{settings}; {len(train_set)} training scenes ({a.train}), {len(test_set)} test ({a.test})")
     start = time.perf_counter()
     train(model, train_set, config, log=print)
     print(f"trained in {time.perf_counter() - start:.1f} s on {default_device()}")
