@@ -4,6 +4,7 @@
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use primfit_core::chamfer::{ChamferOptions, Coefficients, Evaluator, PointModel, SampleSets};
+use primfit_core::na::Point3;
 use primfit_core::progress::Silent;
 use pyo3::prelude::*;
 use rayon::prelude::*;
@@ -32,6 +33,78 @@ impl From<Coefficients> for ChamferProblem {
     }
 }
 
+/// Candidate samples and owners, and the candidate count (`n` or `max(owner) + 1`, ≥ 1).
+fn candidate_samples(
+    samples: &PyReadonlyArray2<'_, f64>,
+    owner: &PyReadonlyArray1<'_, i64>,
+    n: Option<usize>,
+) -> PyResult<(Vec<Point3<f64>>, Vec<usize>, usize)> {
+    let samples = convert::points("samples", samples, false)?;
+    let owner = convert::indices("owner", owner)?;
+    let n = n.unwrap_or_else(|| owner.iter().max().map_or(0, |m| m + 1));
+    if n == 0 {
+        return Err(pyo3::exceptions::PyValueError::new_err(
+            "there must be at least one candidate (N ≥ 1)",
+        ));
+    }
+    Ok((samples, owner, n))
+}
+
+/// The loss options of the Python signature (explicit samples: nearest-sample distances).
+fn chamfer_options(
+    model: &str,
+    alpha: Option<&Bound<'_, PyAny>>,
+    beta: Option<&Bound<'_, PyAny>>,
+    cap: f64,
+    weights: (f64, f64),
+) -> PyResult<ChamferOptions> {
+    Ok(ChamferOptions {
+        model: PointModel::parse(model).py()?,
+        alpha: exact_if_unlimited(convert::limit("alpha", alpha)?),
+        beta: exact_if_unlimited(convert::limit("beta", beta)?),
+        cap,
+        // Explicit samples carry no surface: distances are to the nearest sample.
+        surface_distance: false,
+        primitive_weight: weights.0,
+        point_weight: weights.1,
+    })
+}
+
+/// One problem per cloud against the same candidate samples, built in parallel (a batch
+/// of training scenes); options as for `ChamferProblem`.
+#[pyfunction]
+#[pyo3(signature = (clouds, samples, owner, n=None, *, model="existence", alpha=None, beta=None, cap=0.0, weights=(1.0, 1.0)))]
+#[allow(clippy::too_many_arguments)]
+pub fn chamfer_problems(
+    py: Python<'_>,
+    clouds: Vec<PyReadonlyArray2<'_, f64>>,
+    samples: PyReadonlyArray2<'_, f64>,
+    owner: PyReadonlyArray1<'_, i64>,
+    n: Option<usize>,
+    model: &str,
+    alpha: Option<&Bound<'_, PyAny>>,
+    beta: Option<&Bound<'_, PyAny>>,
+    cap: f64,
+    weights: (f64, f64),
+) -> PyResult<Vec<ChamferProblem>> {
+    let clouds = clouds
+        .iter()
+        .enumerate()
+        .map(|(b, c)| convert::points(&format!("clouds[{b}]"), c, false))
+        .collect::<PyResult<Vec<_>>>()?;
+    let (samples, owner, n) = candidate_samples(&samples, &owner, n)?;
+    let options = chamfer_options(model, alpha, beta, cap, weights)?;
+    let coeffs = pool::detached(py, || {
+        let sets = SampleSets::new(&samples, &owner, n)?;
+        clouds
+            .par_iter()
+            .map(|cloud| Coefficients::build(cloud, &sets, &options, &Silent))
+            .collect::<primfit_core::Result<Vec<_>>>()
+    })?
+    .py()?;
+    Ok(coeffs.into_iter().map(ChamferProblem::from).collect())
+}
+
 #[pymethods]
 impl ChamferProblem {
     #[new]
@@ -50,24 +123,8 @@ impl ChamferProblem {
         weights: (f64, f64),
     ) -> PyResult<Self> {
         let cloud = convert::points("cloud", &cloud, false)?;
-        let samples = convert::points("samples", &samples, false)?;
-        let owner = convert::indices("owner", &owner)?;
-        let n = n.unwrap_or_else(|| owner.iter().max().map_or(0, |m| m + 1));
-        if n == 0 {
-            return Err(pyo3::exceptions::PyValueError::new_err(
-                "there must be at least one candidate (N ≥ 1)",
-            ));
-        }
-        let options = ChamferOptions {
-            model: PointModel::parse(model).py()?,
-            alpha: exact_if_unlimited(convert::limit("alpha", alpha)?),
-            beta: exact_if_unlimited(convert::limit("beta", beta)?),
-            cap,
-            // Explicit samples carry no surface: distances are to the nearest sample.
-            surface_distance: false,
-            primitive_weight: weights.0,
-            point_weight: weights.1,
-        };
+        let (samples, owner, n) = candidate_samples(&samples, &owner, n)?;
+        let options = chamfer_options(model, alpha, beta, cap, weights)?;
         let coeffs = pool::detached(py, || {
             let sets = SampleSets::new(&samples, &owner, n)?;
             Coefficients::build(&cloud, &sets, &options, &Silent)

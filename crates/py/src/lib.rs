@@ -19,7 +19,7 @@ use pyo3::prelude::*;
 #[pymodule(gil_used = false)]
 mod _primfit {
     #[pymodule_export]
-    use super::chamfer::ChamferProblem;
+    use super::chamfer::{ChamferProblem, chamfer_problems};
     #[pymodule_export]
     use super::fit::{PyFitOptions, candidates, fit, fit_problem};
     #[pymodule_export]

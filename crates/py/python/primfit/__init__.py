@@ -38,6 +38,7 @@ __all__ = [
     "FitResult",
     "__version__",
     "candidates",
+    "chamfer_problems",
     "fit",
     "probabilistic_chamfer",
     "read_mesh",
@@ -183,6 +184,38 @@ class ChamferProblem:
 
     def __repr__(self) -> str:
         return repr(self._inner)
+
+
+def chamfer_problems(
+    clouds: Sequence[ArrayLike],
+    samples: ArrayLike,
+    owner: ArrayLike,
+    n: int | None = None,
+    *,
+    model: str = "existence",
+    alpha: Limit = None,
+    beta: Limit = None,
+    cap: float = 0.0,
+    weights: tuple[float, float] = (1.0, 1.0),
+) -> list[ChamferProblem]:
+    """One :class:`ChamferProblem` per cloud, all against the same candidate samples.
+
+    The problems are built in Rust in parallel (GIL released): the way to prepare a
+    batch of training scenes for :mod:`primfit.torch`. Parameters as for
+    :class:`ChamferProblem`; every cloud must be non-empty.
+    """
+    inner = _primfit.chamfer_problems(
+        [_points(f"clouds[{b}]", c) for b, c in enumerate(clouds)],
+        _points("samples", samples),
+        _ints("owner", owner),
+        n,
+        model=model,
+        alpha=alpha,
+        beta=beta,
+        cap=float(cap),
+        weights=(float(weights[0]), float(weights[1])),
+    )
+    return [ChamferProblem._wrap(p) for p in inner]
 
 
 def probabilistic_chamfer(

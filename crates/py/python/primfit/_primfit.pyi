@@ -14,6 +14,7 @@ __all__ = [
     "FitOptions",
     "__version__",
     "candidates",
+    "chamfer_problems",
     "fit",
     "fit_problem",
     "read_mesh",
@@ -60,6 +61,19 @@ class ChamferProblem:
     def g(self) -> _F64: ...
     def evaluate(self, p: _F64) -> tuple[float, float, _F64]: ...
     def evaluate_batch(self, p: _F64) -> tuple[_F64, _F64]: ...
+
+def chamfer_problems(
+    clouds: list[_F64],
+    samples: _F64,
+    owner: _I64,
+    n: int | None = None,
+    *,
+    model: str = "existence",
+    alpha: _Limit = None,
+    beta: _Limit = None,
+    cap: float = 0.0,
+    weights: tuple[float, float] = ...,  # (1.0, 1.0)
+) -> list[ChamferProblem]: ...
 
 @final
 class FitOptions:
