@@ -123,6 +123,7 @@ pub fn fit_mcmc(
         entries: table.entries(),
         bytes_per_entry: std::mem::size_of::<Entry>(),
         coefficient_bytes: table.bytes(),
+        estimated_bytes: table.bytes() as u64,
         lattice_seconds,
         coefficient_seconds: table_seconds,
         solve_seconds,
