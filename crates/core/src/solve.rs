@@ -388,22 +388,27 @@ pub fn lbfgs(
 ///    This shifts a row of tiles by a lattice step, e.g. five half-overlapping tiles
 ///    into four abutting ones.
 ///
-/// Candidates are visited in ascending continuous probability. Incremental: each point
-/// keeps its current cost (nearest existing entry, or `d_cap`) and owner; a move only
-/// rescans rows where the moved candidates have entries. Returns the number of flips.
+/// Candidates are visited in ascending continuous probability; after the first sweep only
+/// candidates near a flipped one are revisited. Incremental: each point keeps its best and
+/// runner-up explanation (owner and distance of the two nearest existing candidates, or
+/// `d_cap`), so a move's change is a sum over the moved candidate's rows with no row scans;
+/// only a removal rescans the rows it owned. Returns the number of flips.
 pub fn polish(
     coeffs: &Coefficients,
     probability: &[f64],
     exists: &mut [bool],
     max_sweeps: usize,
 ) -> usize {
+    let n = coeffs.candidates();
     let mut state = PolishState::new(coeffs, exists);
-    let mut order: Vec<usize> = (0..coeffs.candidates()).collect();
+    let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| probability[a].total_cmp(&probability[b]).then(a.cmp(&b)));
+    let mut dirty = vec![true; n];
     let mut flips = 0;
     for _ in 0..max_sweeps {
         let before = flips;
-        for &i in &order {
+        state.flipped.clear();
+        for &i in order.iter().filter(|&&i| dirty[i]) {
             let delta = state.flip_delta(i);
             if (state.exists[i] && delta <= state.tolerance)
                 || (!state.exists[i] && delta < -state.tolerance)
@@ -412,18 +417,28 @@ pub fn polish(
                 flips += 1;
             }
         }
-        for &i in &order {
+        for &i in order.iter().filter(|&&i| dirty[i]) {
             if !state.exists[i] {
                 flips += state.add_and_prune(i);
             }
         }
-        for &i in &order {
+        for &i in order.iter().filter(|&&i| dirty[i]) {
             if state.exists[i] {
                 flips += state.replace(i);
             }
         }
         if flips == before {
             break;
+        }
+        dirty.fill(false);
+        let mut flipped = std::mem::take(&mut state.flipped);
+        flipped.sort_unstable();
+        flipped.dedup();
+        for &c in &flipped {
+            dirty[c] = true;
+            for k in state.neighbours(c) {
+                dirty[k] = true;
+            }
         }
     }
     exists.copy_from_slice(&state.exists);
@@ -433,33 +448,54 @@ pub fn polish(
 /// Links of a replace chain (move 3 of [`polish`]).
 const CHAIN_DEPTH: usize = 2;
 
+/// Replacement candidates evaluated exactly per chain link (ranked by what they gain on
+/// the freed points).
+const CHAIN_CHOICES: usize = 3;
+
+/// Rows sampled per candidate when listing its neighbours.
+const NEIGHBOUR_ROWS: usize = 512;
+
+/// A point's current explanation: the nearest existing candidate and the runner-up
+/// (a different candidate), each with its squared distance; `u32::MAX` / `d_cap` if none.
+#[derive(Debug, Clone, Copy)]
+struct Explanation {
+    owner: u32,
+    cost: f64,
+    second_owner: u32,
+    second_cost: f64,
+}
+
 /// The binary scene and each point's current explanation, for [`polish`].
 struct PolishState<'c> {
     coeffs: &'c Coefficients,
     rows: Vec<Vec<(u32, f64)>>,
     exists: Vec<bool>,
-    owner: Vec<u32>,
-    cost: Vec<f64>,
+    point: Vec<Explanation>,
+    neighbour_cache: Vec<Option<Vec<u32>>>,
+    gain: Vec<f64>,
+    flipped: Vec<usize>,
     tolerance: f64,
 }
 
 impl<'c> PolishState<'c> {
     fn new(coeffs: &'c Coefficients, exists: &[bool]) -> Self {
-        let j = coeffs.points();
+        let n = coeffs.candidates();
+        let point = (0..coeffs.points())
+            .map(|j| explain(coeffs, j, exists))
+            .collect();
         let mut s = PolishState {
             coeffs,
             rows: transpose(coeffs),
             exists: exists.to_vec(),
-            owner: vec![u32::MAX; j],
-            cost: vec![coeffs.options.cap; j],
+            point,
+            neighbour_cache: vec![None; n],
+            gain: vec![0.0; n],
+            flipped: Vec::new(),
             tolerance: 0.0,
         };
-        for row in 0..j {
-            (s.owner[row], s.cost[row]) = first_existing(coeffs, row, &s.exists, u32::MAX);
-        }
         let o = &coeffs.options;
-        let scale = coeffs.g.iter().sum::<f64>() * o.primitive_weight
-            + s.cost.iter().sum::<f64>() * o.point_weight;
+        let cost: f64 = s.point.iter().map(|e| e.cost).sum();
+        let scale = coeffs.g.iter().sum::<f64>() * o.primitive_weight + cost * o.point_weight;
         s.tolerance = 1e-12 * scale.abs().max(1e-300);
         s
     }
@@ -473,16 +509,21 @@ impl<'c> PolishState<'c> {
         let mut delta = 0.0;
         if self.exists[i] {
             for &(j, _) in &self.rows[i] {
-                let j = j as usize;
-                if self.owner[j] == i as u32 {
-                    delta +=
-                        first_existing(self.coeffs, j, &self.exists, i as u32).1 - self.cost[j];
+                let e = &self.point[j as usize];
+                if e.owner == i as u32 {
+                    delta += e.second_cost - e.cost;
                 }
             }
             wq * delta - wp * self.coeffs.g[i]
         } else {
             for &(j, d) in &self.rows[i] {
-                delta += (d - self.cost[j as usize]).min(0.0);
+                let e = &self.point[j as usize];
+                // An unexplained point costs d_cap until anything exists, however far.
+                delta += if e.owner == u32::MAX {
+                    d - e.cost
+                } else {
+                    (d - e.cost).min(0.0)
+                };
             }
             wq * delta + wp * self.coeffs.g[i]
         }
@@ -491,13 +532,19 @@ impl<'c> PolishState<'c> {
     /// Flips candidate `i` and updates the points it touches.
     fn flip(&mut self, i: usize) {
         self.exists[i] = !self.exists[i];
+        self.flipped.push(i);
+        let c = i as u32;
         for &(j, d) in &self.rows[i] {
-            let j = j as usize;
-            if self.exists[i] && d < self.cost[j] {
-                (self.owner[j], self.cost[j]) = (i as u32, d);
-            } else if !self.exists[i] && self.owner[j] == i as u32 {
-                (self.owner[j], self.cost[j]) =
-                    first_existing(self.coeffs, j, &self.exists, u32::MAX);
+            let e = &mut self.point[j as usize];
+            if self.exists[i] {
+                if e.owner == u32::MAX || d < e.cost {
+                    (e.second_owner, e.second_cost) = (e.owner, e.cost);
+                    (e.owner, e.cost) = (c, d);
+                } else if e.second_owner == u32::MAX || d < e.second_cost {
+                    (e.second_owner, e.second_cost) = (c, d);
+                }
+            } else if e.owner == c || e.second_owner == c {
+                *e = explain(self.coeffs, j as usize, &self.exists);
             }
         }
     }
@@ -512,16 +559,22 @@ impl<'c> PolishState<'c> {
         }
     }
 
-    /// One link of an ejection chain: remove `i`, add its best neighbour `k`, prune what
-    /// `k` made redundant. If the running total (`so_far` plus this link) has not yet
-    /// decreased, continue from each existing candidate that overlaps `k`. Flips are
-    /// recorded in `journal`; on failure this link's flips are undone.
+    /// One link of an ejection chain: remove `i`, add the neighbour `k` that lowers the
+    /// loss most (among the few that gain most on the freed points), prune what `k` made
+    /// redundant. If the running total (`so_far` plus this link) has not yet decreased,
+    /// continue from each existing candidate that overlaps `k`. Flips are recorded in
+    /// `journal`; on failure this link's flips are undone.
     fn chain(&mut self, i: usize, so_far: f64, depth: usize, journal: &mut Vec<usize>) -> bool {
         let mark = journal.len();
+        let freed: Vec<u32> = self.rows[i]
+            .iter()
+            .filter(|&&(j, _)| self.point[j as usize].owner == i as u32)
+            .map(|&(j, _)| j)
+            .collect();
         let mut total = so_far + self.flip_delta(i);
         self.flip(i);
         journal.push(i);
-        if let Some((addition, k)) = self.best_addition_near(i, journal) {
+        if let Some((addition, k)) = self.best_replacement(&freed, journal) {
             total += addition;
             self.flip(k);
             journal.push(k);
@@ -545,38 +598,65 @@ impl<'c> PolishState<'c> {
         false
     }
 
-    /// Candidates with entries in the rows of `i` (its neighbours), sorted, without `i`.
-    fn neighbours(&self, i: usize) -> Vec<usize> {
-        let mut n: Vec<usize> = self.rows[i]
-            .iter()
-            .flat_map(|&(j, _)| {
-                self.coeffs.cand[self.coeffs.row(j as usize)]
-                    .iter()
-                    .map(|&c| c as usize)
-            })
-            .filter(|&c| c != i)
-            .collect();
-        n.sort_unstable();
-        n.dedup();
-        n
-    }
-
-    /// The absent neighbour of `i` (not already moved in this chain) whose addition lowers
-    /// the loss most, with that change.
-    fn best_addition_near(&self, i: usize, journal: &[usize]) -> Option<(f64, usize)> {
-        self.neighbours(i)
+    /// The absent candidate (not moved in this chain) that lowers the loss most, among the
+    /// [`CHAIN_CHOICES`] that gain most on the `freed` points, with that change.
+    fn best_replacement(&mut self, freed: &[u32], journal: &[usize]) -> Option<(f64, usize)> {
+        let mut touched: Vec<usize> = Vec::new();
+        for &j in freed {
+            let cost = self.point[j as usize].cost;
+            let r = self.coeffs.row(j as usize);
+            for (&c, &d) in self.coeffs.cand[r.clone()].iter().zip(&self.coeffs.dist[r]) {
+                let c = c as usize;
+                if d < cost && !self.exists[c] && !journal.contains(&c) {
+                    if self.gain[c] == 0.0 {
+                        touched.push(c);
+                    }
+                    self.gain[c] += cost - d;
+                }
+            }
+        }
+        touched.sort_by(|&a, &b| self.gain[b].total_cmp(&self.gain[a]).then(a.cmp(&b)));
+        for &c in &touched {
+            self.gain[c] = 0.0;
+        }
+        touched
             .into_iter()
-            .filter(|&k| !self.exists[k] && !journal.contains(&k))
+            .take(CHAIN_CHOICES)
             .map(|k| (self.flip_delta(k), k))
             .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
     }
 
-    /// Existing neighbours of `k`.
-    fn existing_overlapping(&self, k: usize) -> Vec<usize> {
-        self.neighbours(k)
-            .into_iter()
-            .filter(|&c| self.exists[c])
+    /// Candidates with entries in (a sample of at most [`NEIGHBOUR_ROWS`] of) the rows of
+    /// `i`, sorted, without `i`; cached.
+    fn neighbours(&mut self, i: usize) -> Vec<usize> {
+        if self.neighbour_cache[i].is_none() {
+            let rows = &self.rows[i];
+            let stride = rows.len().div_ceil(NEIGHBOUR_ROWS).max(1);
+            let mut n: Vec<u32> = rows
+                .iter()
+                .step_by(stride)
+                .flat_map(|&(j, _)| {
+                    self.coeffs.cand[self.coeffs.row(j as usize)]
+                        .iter()
+                        .copied()
+                })
+                .filter(|&c| c as usize != i)
+                .collect();
+            n.sort_unstable();
+            n.dedup();
+            self.neighbour_cache[i] = Some(n);
+        }
+        self.neighbour_cache[i]
+            .iter()
+            .flatten()
+            .map(|&c| c as usize)
             .collect()
+    }
+
+    /// Existing neighbours of `k`.
+    fn existing_overlapping(&mut self, k: usize) -> Vec<usize> {
+        let n = self.neighbours(k);
+        n.into_iter().filter(|&c| self.exists[c]).collect()
     }
 
     /// Removes every existing neighbour of `k` whose removal costs nothing, in index
@@ -594,15 +674,16 @@ impl<'c> PolishState<'c> {
         total
     }
 
-    /// The compound move of [`polish`]; returns the number of flips kept (0 if reverted).
+    /// Move 2 of [`polish`]; returns the number of flips kept (0 if reverted).
     fn add_and_prune(&mut self, i: usize) -> usize {
         // Owners of the rows that `i` would explain at least as well: the neighbours it
         // may make redundant. Ties count, so one tile can replace two half-overlapping ones
         // even when the points are already perfectly explained.
         let mut displaced: Vec<u32> = self.rows[i]
             .iter()
-            .filter(|&&(j, d)| d <= self.cost[j as usize] && self.owner[j as usize] != u32::MAX)
-            .map(|&(j, _)| self.owner[j as usize])
+            .map(|&(j, d)| (self.point[j as usize], d))
+            .filter(|(e, d)| *d <= e.cost && e.owner != u32::MAX)
+            .map(|(e, _)| e.owner)
             .collect();
         if displaced.is_empty() {
             return 0;
@@ -631,6 +712,30 @@ impl<'c> PolishState<'c> {
             0
         }
     }
+}
+
+/// The two nearest existing candidates of row `j` (distinct owners), as an [`Explanation`].
+fn explain(coeffs: &Coefficients, j: usize, exists: &[bool]) -> Explanation {
+    let cap = coeffs.options.cap;
+    let mut e = Explanation {
+        owner: u32::MAX,
+        cost: cap,
+        second_owner: u32::MAX,
+        second_cost: cap,
+    };
+    let r = coeffs.row(j);
+    for (&c, &d) in coeffs.cand[r.clone()].iter().zip(&coeffs.dist[r]) {
+        if !exists[c as usize] || c == e.owner {
+            continue;
+        }
+        if e.owner == u32::MAX {
+            (e.owner, e.cost) = (c, d);
+        } else {
+            (e.second_owner, e.second_cost) = (c, d);
+            break;
+        }
+    }
+    e
 }
 
 /// For each candidate, the rows (points) where it has entries, with its smallest distance there.
@@ -663,17 +768,6 @@ fn transpose(coeffs: &Coefficients) -> Vec<Vec<(u32, f64)>> {
         }
     }
     rows
-}
-
-/// `(owner, distance)` of the first entry of row `j` whose owner exists (skipping `skip`),
-/// or `(u32::MAX, d_cap)`.
-fn first_existing(coeffs: &Coefficients, j: usize, exists: &[bool], skip: u32) -> (u32, f64) {
-    let r = coeffs.row(j);
-    coeffs.cand[r.clone()]
-        .iter()
-        .zip(&coeffs.dist[r])
-        .find(|(c, _)| **c != skip && exists[**c as usize])
-        .map_or((u32::MAX, coeffs.options.cap), |(c, d)| (*c, *d))
 }
 
 #[cfg(test)]
@@ -849,6 +943,59 @@ mod tests {
                 ev.binary_value(&e).total >= base - 1e-12,
                 "flip {i} improves"
             );
+        }
+    }
+}
+#[cfg(test)]
+mod polish_tests {
+    use super::*;
+    use crate::chamfer::{ChamferOptions, Evaluator, SampleSets};
+    use crate::progress::Silent;
+    use nalgebra::Point3;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+
+    /// The incremental explanations stay equal to a fresh scan of every row after long
+    /// random flip sequences, including candidates farther than d_cap.
+    #[test]
+    fn incremental_explanations_match_a_fresh_scan() {
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let mut pt = |s: f64| Point3::new(rng.random_range(-s..s), rng.random_range(-s..s), 0.0);
+        let cloud: Vec<Point3<f64>> = (0..60).map(|_| pt(3.0)).collect();
+        let samples: Vec<Point3<f64>> = (0..40).map(|_| pt(3.0)).collect();
+        let owner: Vec<usize> = (0..40).map(|k| k % 12).collect();
+        let sets = SampleSets::new(&samples, &owner, 12).unwrap();
+        for beta in [None, Some(3)] {
+            let o = ChamferOptions {
+                cap: 0.05,
+                beta,
+                ..Default::default()
+            };
+            let c = Coefficients::build(&cloud, &sets, &o, &Silent).unwrap();
+            let mut ev = Evaluator::new(&c);
+            let mut st = PolishState::new(&c, &[false; 12]);
+            let mut rng = ChaCha8Rng::seed_from_u64(4);
+            for _ in 0..300 {
+                let i = rng.random_range(0..12usize);
+                let before = ev.binary_value(&st.exists).total;
+                let predicted = st.flip_delta(i);
+                st.flip(i);
+                let after = ev.binary_value(&st.exists).total;
+                assert!(
+                    (after - before - predicted).abs() < 1e-9,
+                    "flip {i}: {predicted} vs {}",
+                    after - before
+                );
+                for j in 0..c.points() {
+                    let fresh = explain(&c, j, &st.exists);
+                    let kept = st.point[j];
+                    assert_eq!(
+                        (fresh.cost, fresh.second_cost),
+                        (kept.cost, kept.second_cost),
+                        "row {j}"
+                    );
+                }
+            }
         }
     }
 }
