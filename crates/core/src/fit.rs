@@ -511,7 +511,13 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     progress.message(&format!("settings: {}", settings.to_json()));
 
     let t0 = Instant::now();
-    let candidates = CandidateSet::build(&settings.lattice(), cloud)?;
+    let mut candidates = CandidateSet::build(&settings.lattice(), cloud)?;
+    // Exact in effect: a candidate with no point within the cap of its surface can only
+    // raise the loss (see `CandidateSet::near_data`).
+    if settings.cap > 0.0 {
+        let keep = candidates.near_data(&cloud.points, settings.cap + settings.sample_spacing);
+        candidates.retain(&keep);
+    }
     let lattice_seconds = t0.elapsed().as_secs_f64();
     if candidates.is_empty() {
         return Err(Error::invalid(

@@ -236,6 +236,41 @@ impl CandidateSet {
         Primitive::new(self.template(i).shape.clone(), self.poses[i])
     }
 
+    /// For each candidate: does one of its surface samples lie within `distance` of an
+    /// input point? Conservative (cells of size `distance`, so a few candidates up to
+    /// `2√3 · distance` away also pass); never drops a candidate that is within `distance`.
+    ///
+    /// A candidate whose surface has no input point within the cap distance explains no
+    /// point better than `d_cap` and adds a positive primitive term, so it can only make
+    /// the loss worse: the fitter drops such candidates before building coefficients.
+    pub fn near_data(&self, cloud: &[Point3<f64>], distance: f64) -> Vec<bool> {
+        if !(distance.is_finite() && distance > 0.0) {
+            return vec![true; self.len()];
+        }
+        let cell = |p: &Point3<f64>| (p.coords / distance).map(|c| c.floor() as i64);
+        let occupied: HashSet<nalgebra::Vector3<i64>> = cloud.iter().map(cell).collect();
+        let near: HashSet<nalgebra::Vector3<i64>> = occupied
+            .iter()
+            .flat_map(|c| {
+                (-1..=1).flat_map(move |i| {
+                    (-1..=1).flat_map(move |j| {
+                        (-1..=1).map(move |k| c + nalgebra::Vector3::new(i, j, k))
+                    })
+                })
+            })
+            .collect();
+        (0..self.len())
+            .into_par_iter()
+            .map(|i| {
+                let pose = &self.poses[i];
+                self.template(i)
+                    .samples
+                    .iter()
+                    .any(|x| near.contains(&cell(&pose.to_scene(x))))
+            })
+            .collect()
+    }
+
     /// Keeps only the candidates for which `keep(i)` is true (order preserved).
     pub fn retain(&mut self, keep: &[bool]) {
         let mut k = keep.iter();
@@ -569,6 +604,30 @@ mod tests {
         let y = Point3::new(0.7, 0.2, 0.3);
         let exact = set.primitive(1).distance(&y);
         assert!((set.surface_distance(1, &y) - exact * exact).abs() < 1e-12);
+    }
+
+    #[test]
+    fn near_data_keeps_every_candidate_within_the_distance() {
+        let cloud =
+            PointCloud::from_points(vec![Point3::new(0.1, 0.1, 0.0), Point3::new(3.0, 0.2, 0.0)]);
+        let set = CandidateSet::build(&spec(), &cloud).unwrap();
+        let distance = 0.3;
+        let keep = set.near_data(&cloud.points, distance);
+        let mut buf = Vec::new();
+        for (i, k) in keep.iter().enumerate() {
+            set.scene_samples(i, &mut buf);
+            let nearest = buf
+                .iter()
+                .flat_map(|x| cloud.points.iter().map(move |y| (x - y).norm()))
+                .fold(f64::INFINITY, f64::min);
+            if nearest <= distance {
+                assert!(*k, "candidate {i} at {nearest} dropped");
+            }
+            if nearest > 2.0 * 3f64.sqrt() * distance {
+                assert!(!*k, "candidate {i} at {nearest} kept");
+            }
+        }
+        assert!(keep.iter().any(|k| !k), "nothing was far enough to drop");
     }
 
     #[test]
