@@ -19,6 +19,7 @@
 //! | [`chamfer`] | the probabilistic chamfer distance: coefficients, value, gradient |
 //! | [`solve`] | projected L-BFGS over existence, thresholding, discrete polish |
 //! | [`synth`] | synthetic scenes with ground truth |
+//! | [`register`] | particle-filter registration of a mesh, the chamfer as measurement |
 //! | [`metrics`] | the measures of DESIGN §4 |
 //! | [`io`] | PLY and JSON |
 //!
@@ -38,6 +39,7 @@ pub mod lattice;
 pub mod metrics;
 pub mod primitive;
 pub mod progress;
+pub mod register;
 pub mod solve;
 pub mod spatial;
 pub mod synth;
