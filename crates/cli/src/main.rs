@@ -35,6 +35,8 @@ enum Command {
     Synth(commands::synth::SynthArgs),
     /// Measure how well a result explains a scan (DESIGN §4 measures, as JSON).
     Eval(commands::eval::EvalArgs),
+    /// Find the pose(s) of a mesh in a scan (particle filter + ICP) and write result JSON.
+    Register(commands::register::RegisterArgs),
 }
 
 fn main() -> ExitCode {
@@ -55,6 +57,7 @@ fn main() -> ExitCode {
         Command::Fit(a) => commands::fit::run(a, &out),
         Command::Synth(a) => commands::synth::run(a, &out),
         Command::Eval(a) => commands::eval::run(a, &out),
+        Command::Register(a) => commands::register::run(a, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

@@ -2,6 +2,7 @@
 
 pub mod eval;
 pub mod fit;
+pub mod register;
 pub mod synth;
 
 /// How much to print.

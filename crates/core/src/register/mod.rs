@@ -198,9 +198,8 @@ impl RegisterOptions {
         {
             return Err(Error::invalid("primitive_weight must be finite and ≥ 0"));
         }
-        if !(self.min_support.is_finite() && self.min_support >= 0.0)
-            || !(self.search_support.is_finite() && self.search_support >= 0.0)
-        {
+        let supports = [self.min_support, self.search_support];
+        if !supports.iter().all(|s| s.is_finite() && *s >= 0.0) {
             return Err(Error::invalid(
                 "min_support and search_support must be finite and ≥ 0",
             ));

@@ -431,7 +431,7 @@ pub fn tempered_weights(score: &[f64], ess: f64) -> Vec<f64> {
     let max = score.iter().copied().fold(f64::NEG_INFINITY, f64::max);
     let min = score.iter().copied().fold(f64::INFINITY, f64::min);
     let range = max - min;
-    if n == 0 || !(range > 0.0) || !range.is_finite() {
+    if n == 0 || range.is_nan() || range <= 0.0 || !range.is_finite() {
         return vec![1.0 / n.max(1) as f64; n];
     }
     let weights = |t: f64| {
