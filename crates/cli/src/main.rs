@@ -38,6 +38,8 @@ enum Command {
     /// Measure how well a result explains a scan (DESIGN §4 measures, as JSON).
     #[command(allow_negative_numbers = true)]
     Eval(commands::eval::EvalArgs),
+    /// Find the pose(s) of a mesh in a scan (particle filter + ICP) and write result JSON.
+    Register(commands::register::RegisterArgs),
 }
 
 fn main() -> ExitCode {
@@ -58,6 +60,7 @@ fn main() -> ExitCode {
         Command::Fit(a) => commands::fit::run(a, &out),
         Command::Synth(a) => commands::synth::run(a, &out),
         Command::Eval(a) => commands::eval::run(a, &out),
+        Command::Register(a) => commands::register::run(a, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

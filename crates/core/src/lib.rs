@@ -20,6 +20,7 @@
 //! | [`solve`] | projected L-BFGS over existence, thresholding, discrete polish |
 //! | [`ray`] | ray likelihood (thesis eq. 4.10), RayTree, Metropolis–Hastings (thesis ch. 4) |
 //! | [`synth`] | synthetic scenes with ground truth |
+//! | [`register`] | particle-filter registration of a mesh, the chamfer as measurement |
 //! | [`metrics`] | the measures of DESIGN §4 |
 //! | [`io`] | PLY and JSON |
 //!
@@ -40,6 +41,7 @@ pub mod metrics;
 pub mod primitive;
 pub mod progress;
 pub mod ray;
+pub mod register;
 pub mod solve;
 pub mod spatial;
 pub mod synth;

@@ -216,6 +216,7 @@ pub fn synth_registration<'py>(
     let params = RegistrationParams {
         inliers,
         outliers,
+        objects: 1,
         translation,
         scale,
         outlier_box,

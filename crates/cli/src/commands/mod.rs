@@ -6,6 +6,7 @@ use anyhow::{Result, bail};
 
 pub mod eval;
 pub mod fit;
+pub mod register;
 pub mod synth;
 
 /// How much to print.

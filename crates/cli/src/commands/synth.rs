@@ -103,6 +103,13 @@ pub struct SynthArgs {
     /// ground at the floor; vertical: 2 wall; other: 0). --jitter is the range noise.
     #[arg(long, value_name = "FRAMES")]
     pub scan: Option<usize>,
+    /// Registration: number of objects (side by side along x).
+    #[arg(long, default_value_t = 1)]
+    pub objects: usize,
+    /// Registration: largest random translation per axis (scene units) [default: 0,
+    /// rotation only].
+    #[arg(long, default_value_t = 0.0)]
+    pub translation: f64,
 }
 
 fn density(points: Option<usize>, default: Density) -> Density {
@@ -197,13 +204,16 @@ pub fn run(a: SynthArgs, out: &Output) -> Result<()> {
             let p = synth::RegistrationParams {
                 inliers: a.inliers,
                 outliers: a.outliers,
+                objects: a.objects,
+                translation: a.translation,
                 noise: noise(d.noise.jitter),
                 seed: a.seed,
                 ..d
             };
             (
                 synth::registration(&mesh, &p)?,
-                json!({ "inliers": a.inliers, "outliers": a.outliers }),
+                json!({ "inliers": a.inliers, "outliers": a.outliers,
+                    "objects": a.objects, "translation": a.translation }),
             )
         }
     };

@@ -31,6 +31,10 @@ pub struct RegistrationParams {
     pub outlier_box: f64,
     /// Per-point jitter on the inliers (drift is ignored: there is one object).
     pub noise: Noise,
+    /// Number of objects K (thesis figure 6-9), each with its own random pose and
+    /// `inliers` points; object k is centred at `(k − (K−1)/2) · 2.5 r` along x (r = the
+    /// mesh's largest posed bounding radius) plus its random translation.
+    pub objects: usize,
     /// RNG seed.
     pub seed: u64,
 }
@@ -44,6 +48,7 @@ impl Default for RegistrationParams {
             scale: None,
             outlier_box: 1.0,
             noise: Noise::default(),
+            objects: 1,
             seed: 0,
         }
     }
@@ -63,9 +68,14 @@ fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
 }
 
 /// `inliers` points from the surface of `mesh` under a random pose, followed by
-/// `outliers` points uniform in a cube around it. The cloud lists the inliers first.
-/// The truth is the one posed mesh primitive; the lattice hint is informational
+/// `outliers` points uniform in a cube around it (half-side `outlier_box` × the posed
+/// bounding radius, centred on the pose's translation). The cloud lists the inliers
+/// first. The truth is the posed mesh primitive; the lattice hint is informational
 /// (spacing = the posed bounding radius, origin 0).
+///
+/// With `objects` = K > 1: K posed meshes side by side along x, `inliers` points on
+/// each (object by object), then `outliers` points uniform in the bounding box of the K
+/// cubes.
 pub fn registration(mesh: &MeshShape, params: &RegistrationParams) -> Result<Scene> {
     let shape = Shape::Mesh(mesh.clone());
     shape.validate()?;
@@ -79,45 +89,65 @@ pub fn registration(mesh: &MeshShape, params: &RegistrationParams) -> Result<Sce
             return Err(Error::invalid(format!("scale range ({lo}, {hi}) is empty")));
         }
     }
+    if params.objects == 0 {
+        return Err(Error::invalid(
+            "a registration scene needs at least one object",
+        ));
+    }
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
-    let rotation = random_rotation(&mut rng);
-    let t = params.translation;
-    let translation = Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * t);
-    let scale = params
-        .scale
-        .map_or(1.0, |(lo, hi)| lo + (hi - lo) * rng.random::<f64>());
-    let truth = Primitive::new(
-        shape,
-        Pose {
-            rotation,
-            translation,
-            scale,
-        },
-    );
+    let k = params.objects;
+    let largest = params.scale.map_or(1.0, |s| s.1) * mesh.bounding_radius();
+    let mut truth = Vec::with_capacity(k);
+    for i in 0..k {
+        let rotation = random_rotation(&mut rng);
+        let t = params.translation;
+        let offset = Vector3::x() * ((i as f64 - (k - 1) as f64 / 2.0) * 2.5 * largest);
+        let translation = offset + Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * t);
+        let scale = params
+            .scale
+            .map_or(1.0, |(lo, hi)| lo + (hi - lo) * rng.random::<f64>());
+        truth.push(Primitive::new(
+            shape.clone(),
+            Pose {
+                rotation,
+                translation,
+                scale,
+            },
+        ));
+    }
     let noise = Noise {
         jitter: params.noise.jitter,
         drift: 0.0,
     };
-    let mut points = sample_pieces(
-        &[Piece::Prim(truth.clone())],
-        Density::Total(params.inliers),
-        noise,
-        &mut rng,
-    )?;
-    let half = params.outlier_box * truth.bounding_radius();
+    let mut points = Vec::with_capacity(k * params.inliers + params.outliers);
+    for t in &truth {
+        points.extend(sample_pieces(
+            &[Piece::Prim(t.clone())],
+            Density::Total(params.inliers),
+            noise,
+            &mut rng,
+        )?);
+    }
+    let (mut lo, mut hi) = (
+        Vector3::repeat(f64::INFINITY),
+        Vector3::repeat(f64::NEG_INFINITY),
+    );
+    for t in &truth {
+        let half = Vector3::repeat(params.outlier_box * t.bounding_radius());
+        lo = lo.inf(&(t.pose.translation - half));
+        hi = hi.sup(&(t.pose.translation + half));
+    }
     points.extend((0..params.outliers).map(|_| {
-        Point3::from(
-            translation + Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * half),
-        )
+        Point3::from(lo + Vector3::from_fn(|a, _| (hi[a] - lo[a]) * rng.random::<f64>()))
     }));
     Ok(Scene {
         cloud: PointCloud::from_points(points),
         lattice: LatticeHint {
-            spacing: truth.bounding_radius(),
+            spacing: truth[0].bounding_radius(),
             origin: Point3::origin(),
-            shapes: vec![truth.shape.clone()],
+            shapes: vec![truth[0].shape.clone()],
         },
-        truth: vec![truth],
+        truth,
         misalignment: Pose::identity(),
     })
 }

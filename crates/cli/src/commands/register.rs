@@ -1,0 +1,150 @@
+//! `primfit register`: find the pose(s) of a mesh in a scan (particle filter with the
+//! probabilistic chamfer as measurement, then trimmed ICP).
+
+use std::path::PathBuf;
+
+use anyhow::{Context, Result, bail};
+use clap::Args;
+use primfit_core::atlas::MeshShape;
+use primfit_core::io;
+use primfit_core::na::Vector3;
+use primfit_core::register::{RegisterOptions, register};
+
+use super::{Output, parse_point};
+use crate::progress::Bars;
+
+/// Arguments of `primfit register`. Relative sizes are fractions of the model size (the
+/// diagonal of the mesh's bounding box).
+#[derive(Debug, Args)]
+pub struct RegisterArgs {
+    /// The scan: a PLY point cloud.
+    pub scene: PathBuf,
+    /// The object: a triangle mesh (PLY with faces), in its own local frame.
+    #[arg(long, value_name = "object.ply")]
+    pub model: PathBuf,
+    /// Write the result JSON here (one `"type": "mesh"` entry per object found).
+    #[arg(short, long, value_name = "result.json")]
+    pub output: Option<PathBuf>,
+    /// Seed for every random choice.
+    #[arg(long, default_value_t = 0)]
+    pub seed: u64,
+    /// Find exactly K objects [default: as many as exist].
+    #[arg(long, value_name = "K")]
+    pub count: Option<usize>,
+    /// Also estimate the translation (else rotation only, about the mesh's origin).
+    #[arg(long)]
+    pub translation: bool,
+    /// The fixed translation `x,y,z` when it is not estimated [default: 0,0,0].
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true, conflicts_with = "translation")]
+    pub at: Option<[f64; 3]>,
+    /// Also estimate a uniform scale, within `--scale-range`.
+    #[arg(long)]
+    pub scale: bool,
+    /// Scale range `lo,hi` for `--scale`.
+    #[arg(long, value_delimiter = ',', num_args = 2, default_value = "0.5,2")]
+    pub scale_range: Vec<f64>,
+    /// Particles of the first round.
+    #[arg(long)]
+    pub initial_particles: Option<usize>,
+    /// Particles of later rounds.
+    #[arg(long)]
+    pub particles: Option<usize>,
+    /// Round limit per object.
+    #[arg(long)]
+    pub max_rounds: Option<usize>,
+    /// Points an object must explain beyond clutter to exist.
+    #[arg(long)]
+    pub min_support: Option<f64>,
+    /// Inlier distance, fraction of the model size.
+    #[arg(long)]
+    pub inlier_distance: Option<f64>,
+    /// Skip the final ICP refinement.
+    #[arg(long)]
+    pub no_icp: bool,
+}
+
+impl RegisterArgs {
+    fn options(&self) -> Result<RegisterOptions> {
+        let d = RegisterOptions::default();
+        let scale = match (self.scale, self.scale_range.as_slice()) {
+            (false, _) => None,
+            (true, [a, b]) => Some((*a, *b)),
+            (true, _) => bail!("--scale-range needs two numbers lo,hi"),
+        };
+        let options = RegisterOptions {
+            translation: self.translation,
+            fixed_translation: self.at.map_or(Vector3::zeros(), Vector3::from),
+            scale,
+            count: self.count,
+            initial_particles: self.initial_particles.unwrap_or(d.initial_particles),
+            particles: self.particles.unwrap_or(d.particles),
+            max_rounds: self.max_rounds.unwrap_or(d.max_rounds),
+            min_support: self.min_support.unwrap_or(d.min_support),
+            inlier_distance: self.inlier_distance.unwrap_or(d.inlier_distance),
+            icp: !self.no_icp,
+            seed: self.seed,
+            ..d
+        };
+        options.validate()?;
+        Ok(options)
+    }
+}
+
+/// Runs `primfit register`.
+pub fn run(args: RegisterArgs, out: &Output) -> Result<()> {
+    let options = args.options()?;
+    let mesh = MeshShape::new(
+        args.model.display().to_string(),
+        io::read_mesh(&args.model)?,
+    )?;
+    let cloud = io::read_cloud(&args.scene)?;
+    if cloud.is_empty() {
+        bail!("{}: the cloud has no points", args.scene.display());
+    }
+    let bars = Bars::new(out.quiet, out.verbose);
+    let result = register(&cloud, &mesh, &options, &bars)
+        .with_context(|| format!("registering {}", args.scene.display()))?;
+    let prims: Vec<_> = result.objects.iter().map(|o| o.primitive.clone()).collect();
+    let metrics = super::eval::measure(&cloud, &prims, None)?;
+    if let Some(path) = &args.output {
+        let mut settings = options.to_json();
+        settings["scene"] = args.scene.display().to_string().into();
+        settings["model"] = args.model.display().to_string().into();
+        let doc = result.to_json(settings, metrics.to_json());
+        io::write_json_atomic(path, &doc)?;
+    }
+    if !out.quiet {
+        println!(
+            "{}: {} points → {} object(s) in {:.2} s",
+            args.scene.display(),
+            cloud.len(),
+            result.objects.len(),
+            result.seconds
+        );
+        for (k, o) in result.objects.iter().enumerate() {
+            let p = &o.primitive.pose;
+            let (axis, angle) = p
+                .rotation
+                .axis_angle()
+                .map_or((Vector3::z(), 0.0), |(a, t)| (a.into_inner(), t));
+            println!(
+                "  #{k}: rotation {:.2}° about [{:.3}, {:.3}, {:.3}], translation [{:.4}, {:.4}, {:.4}], scale {:.4}; existence {:.2}, inlier share {:.3}, rms {:.4}",
+                angle.to_degrees(),
+                axis.x,
+                axis.y,
+                axis.z,
+                p.translation.x,
+                p.translation.y,
+                p.translation.z,
+                p.scale,
+                o.existence,
+                o.inlier_share,
+                o.rms
+            );
+        }
+        if let Some(path) = &args.output {
+            println!("wrote result {}", path.display());
+        }
+    }
+    Ok(())
+}

@@ -1,0 +1,94 @@
+//! `primfit register` end to end: synth scene → register → result JSON.
+
+use std::process::Command;
+
+use primfit_core::io::{self, Encoding};
+use primfit_core::synth::asymmetric_object;
+
+fn primfit() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_primfit"))
+}
+
+#[test]
+fn register_writes_one_mesh_entry_per_object() {
+    let dir = std::env::temp_dir().join(format!("primfit-register-cli-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("object.ply");
+    io::write_mesh(&model, &asymmetric_object().mesh, None, Encoding::Ascii).unwrap();
+    let scene = dir.join("scene.ply");
+    let truth = dir.join("truth.json");
+    let status = primfit()
+        .args([
+            "--quiet",
+            "synth",
+            "registration",
+            "--seed",
+            "2",
+            "--outliers",
+            "400",
+        ])
+        .arg("-o")
+        .arg(&scene)
+        .arg("--truth")
+        .arg(&truth)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let result = dir.join("result.json");
+    let out = primfit()
+        .arg("register")
+        .arg(&scene)
+        .arg("--model")
+        .arg(&model)
+        .arg("-o")
+        .arg(&result)
+        .args(["--seed", "2"])
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&result).unwrap()).unwrap();
+    let list = doc["primitives"].as_array().unwrap();
+    assert_eq!(list.len(), 1);
+    assert_eq!(list[0]["type"], "mesh");
+    assert!(list[0]["existence"].as_f64().unwrap() >= 0.5);
+    assert!(list[0]["inlier_share"].as_f64().unwrap() > 0.15);
+    let truth: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(&truth).unwrap()).unwrap();
+    let q = |v: &serde_json::Value| -> Vec<f64> {
+        v["rotation"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .map(|x| x.as_f64().unwrap())
+            .collect()
+    };
+    let (a, b) = (q(&list[0]["pose"]), q(&truth["primitives"][0]["pose"]));
+    let dot: f64 = a
+        .iter()
+        .zip(&b)
+        .map(|(x, y)| x * y)
+        .sum::<f64>()
+        .abs()
+        .min(1.0);
+    let angle = 2.0 * dot.acos().to_degrees();
+    assert!(angle < 3.0, "rotation error {angle}°");
+    assert!(doc["settings"]["seed"] == 2);
+
+    // Errors: one line, exit status 1.
+    let out = primfit()
+        .arg("register")
+        .arg(&scene)
+        .arg("--model")
+        .arg(dir.join("missing.ply"))
+        .output()
+        .unwrap();
+    assert_eq!(out.status.code(), Some(1));
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(err.trim_end().lines().count(), 1, "{err}");
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -1,0 +1,500 @@
+//! The particle filter: one object's pose, searched with the probabilistic chamfer as the
+//! measurement (thesis §6.3.3).
+
+use std::sync::Arc;
+
+use nalgebra::{Point3, UnitQuaternion, Vector3};
+use rand::RngExt;
+use rand_chacha::ChaCha8Rng;
+use rand_distr::{Distribution, StandardNormal};
+
+use rayon::prelude::*;
+
+use super::RegisterOptions;
+use super::geometry::{Chain, DistanceGrid, OutlierBox, Particles};
+use super::icp::{Freedom, IcpOptions, refine};
+use crate::atlas::MeshShape;
+use crate::chamfer::{CandidateGeometry, ChamferOptions, Coefficients, PointModel};
+use crate::lattice::Template;
+use crate::progress::{Progress, Silent};
+use crate::solve::{SolverOptions, solve};
+use crate::{Pose, Result};
+
+/// What one round of the filter saw.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RoundStats {
+    /// Kernel width of the round: the outlier primitive's expected nearest-sample
+    /// distance (scene units).
+    pub kernel: f64,
+    /// Particles in the round.
+    pub particles: usize,
+    /// Best measurement (loss decrease when the best particle is added to the
+    /// background; squared scene units).
+    pub best_score: f64,
+    /// Largest existence probability of a particle in the chamfer solution.
+    pub best_existence: f64,
+    /// Effective sample size of the weights (particles).
+    pub ess: f64,
+}
+
+/// Outcome of one filter run.
+#[derive(Debug, Clone)]
+pub struct FilterResult {
+    /// Best pose of the last round.
+    pub pose: Pose,
+    /// Its measurement.
+    pub score: f64,
+    /// Kernel of the last round (scene units).
+    pub kernel: f64,
+    /// Per-round statistics.
+    pub rounds: Vec<RoundStats>,
+}
+
+/// What [`Context::measure`] returns for each pose.
+pub(crate) struct Measurement {
+    /// Binary chamfer decrease when the pose alone joins the background (squared units).
+    pub score: Vec<f64>,
+    /// Existence probability in the chamfer solve (with polish: exactly 0 when the
+    /// polished binary solution drops it, at least the threshold when it keeps it).
+    pub existence: Vec<f64>,
+}
+
+/// Fixed context of a search: cloud, model, scene box, objects already found.
+pub(crate) struct Context<'a> {
+    pub cloud: &'a [Point3<f64>],
+    pub grid: Arc<DistanceGrid>,
+    pub mesh: MeshShape,
+    pub template_spacing: f64,
+    pub shape: crate::Shape,
+    pub lo: Point3<f64>,
+    pub hi: Point3<f64>,
+    /// The model's surface samples relative to its centre (local units).
+    pub hull: Vec<Vector3<f64>>,
+    /// Mesh surface area (local units²).
+    pub area: f64,
+    /// Model size: diagonal of the mesh's bounding box (local units).
+    pub size: f64,
+    /// Centre of the mesh's bounding box (local frame).
+    pub centre: Point3<f64>,
+    /// RMS distance of the mesh's samples from the rotation centre (local units).
+    pub lever: f64,
+    pub options: &'a RegisterOptions,
+}
+
+impl Context<'_> {
+    /// Which pose parameters are estimated.
+    pub fn freedom(&self) -> Freedom {
+        Freedom {
+            translation: self.options.translation,
+            scale: self.options.scale.is_some(),
+        }
+    }
+
+    fn template(&self) -> Template {
+        Template::new(self.shape.clone(), self.template_spacing)
+    }
+
+    /// The chamfer options of a round with kernel `kernel`.
+    fn chamfer(&self, kernel: f64) -> ChamferOptions {
+        ChamferOptions {
+            model: PointModel::Existence,
+            alpha: None,
+            beta: Some(self.options.beta),
+            cap: 4.0 * kernel * kernel,
+            surface_distance: true,
+            primitive_weight: 1.0, // replaced once g is known
+            point_weight: 1.0,
+        }
+    }
+
+    /// Existence probabilities of `poses` next to `found` and the outlier primitive (which
+    /// come first in the candidate set), and the measurement of every pose: the binary chamfer decrease when it alone is
+    /// added to the outlier primitive and `found`,
+    /// `Σ_y max(0, b(y) − d_i(y)) − w_prim g_i`, `b(y)` = the background's cost of `y`,
+    /// with the primitive weight calibrated for `support` points ([`Context::price`])
+    /// unless [`RegisterOptions::primitive_weight`] is set.
+    pub fn measure(
+        &self,
+        found: &[Pose],
+        poses: Vec<Pose>,
+        kernel: f64,
+        support: f64,
+        polish: bool,
+        rng: &mut ChaCha8Rng,
+    ) -> Result<Measurement> {
+        let outlier = OutlierBox::new(
+            self.lo,
+            self.hi,
+            kernel,
+            self.options.max_outlier_samples,
+            rng,
+        );
+        let background = Particles::new(self.template(), self.grid.clone(), found.to_vec());
+        let particles = Particles::new(self.template(), self.grid.clone(), poses);
+        let fixed = Chain {
+            a: &outlier,
+            b: &background,
+        };
+        let all = Chain {
+            a: &fixed,
+            b: &particles,
+        };
+        let options = self.chamfer(kernel);
+        let mut coeffs = Coefficients::build(self.cloud, &all, &options, &Silent)?;
+        let offset = fixed.len();
+        let n = particles.len();
+        let kernel2 = outlier.expected_distance();
+        let price = self.price(kernel2, support);
+        let weight = match self.options.primitive_weight {
+            Some(w) => w,
+            None => price / median(&coeffs.g[offset..]),
+        };
+        coeffs.options.primitive_weight = weight;
+        // The outlier primitive and the objects already found always exist: they pay no
+        // primitive term, so the solve never trades them away.
+        coeffs.g[..offset].iter_mut().for_each(|g| *g = 0.0);
+        let solver = SolverOptions {
+            polish,
+            max_iterations: 100,
+            initial: 1.0,
+            ..Default::default()
+        };
+        let solution = solve(&coeffs, &solver, &Silent)?;
+        let mut gain = vec![0.0; n];
+        for (j, y) in self.cloud.iter().enumerate() {
+            let mut b = outlier.surface_distance(0, y);
+            for k in 0..background.len() {
+                b = b.min(background.surface_distance(k, y));
+            }
+            for e in coeffs.row(j) {
+                let c = coeffs.cand[e] as usize;
+                if c >= offset {
+                    gain[c - offset] += (b - coeffs.dist[e]).max(0.0);
+                }
+            }
+        }
+        let score = (0..n)
+            .map(|i| gain[i] - weight * coeffs.g[offset + i])
+            .collect();
+        let existence = if polish {
+            solution
+                .exists
+                .iter()
+                .zip(&solution.probability)
+                .map(|(&e, &p)| {
+                    if e {
+                        p.max(self.options.threshold)
+                    } else {
+                        p.min(0.0)
+                    }
+                })
+                .collect::<Vec<f64>>()
+        } else {
+            solution.probability
+        };
+        Ok(Measurement {
+            score,
+            existence: existence[offset..].to_vec(),
+        })
+    }
+
+    /// What an object must gain to exist: the point-term gain expected from uniform
+    /// clutter around its surface plus that of `support` perfectly explained points. Clutter of density ρ = J / V (the scene box) gains
+    /// `(4/3) ρ A δ³` on a surface of area `A` for the kernel `δ² = kernel2`. The
+    /// calibrated primitive weight makes a typical particle (median `g`) pay exactly this.
+    fn price(&self, kernel2: f64, support: f64) -> f64 {
+        let volume = (self.hi - self.lo)
+            .iter()
+            .map(|e| e.max(1e-12))
+            .product::<f64>();
+        let rho = self.cloud.len() as f64 / volume;
+        let delta = kernel2.sqrt();
+        let clutter = 4.0 / 3.0 * rho * self.area * delta * kernel2;
+        clutter + support * kernel2
+    }
+
+    /// A particle drawn from the prior: Haar-uniform rotation; log-uniform scale; with
+    /// translation search, the model centre uniform in the positions where the rotated,
+    /// scaled model lies inside the scene box ([`Context::translation_prior`]).
+    fn prior(&self, rng: &mut ChaCha8Rng) -> Pose {
+        let o = self.options;
+        let rotation = random_rotation(rng);
+        let scale = match o.scale {
+            Some((a, b)) => (a.ln() + (b.ln() - a.ln()) * rng.random::<f64>()).exp(),
+            None => 1.0,
+        };
+        let translation = if o.translation {
+            let (lo, hi) = self.translation_prior(&rotation, scale);
+            let c = lo + (hi - lo).map(|e| e * rng.random::<f64>());
+            c.coords - rotation * (self.centre.coords * scale)
+        } else {
+            o.fixed_translation
+        };
+        Pose {
+            rotation,
+            translation,
+            scale,
+        }
+    }
+
+    /// The box of model-centre positions (scene units) for which the model's samples,
+    /// rotated by `rotation` and scaled, lie inside the scene box (an object lies inside
+    /// the scan), each extent first multiplied by [`RegisterOptions::prior_margin`];
+    /// along an axis where the model does not fit, the box's midpoint.
+    pub fn translation_prior(
+        &self,
+        rotation: &UnitQuaternion<f64>,
+        scale: f64,
+    ) -> (Point3<f64>, Point3<f64>) {
+        let (mut neg, mut pos) = (Vector3::zeros(), Vector3::zeros());
+        for v in &self.hull {
+            let w = rotation * (v * scale);
+            neg = neg.inf(&w);
+            pos = pos.sup(&w);
+        }
+        let m = self.options.prior_margin;
+        let (mut lo, mut hi) = (self.lo, self.hi);
+        for a in 0..3 {
+            let (l, h) = (self.lo[a] - m * neg[a], self.hi[a] - m * pos[a]);
+            if l <= h {
+                (lo[a], hi[a]) = (l, h);
+            } else {
+                let mid = 0.5 * (l + h);
+                (lo[a], hi[a]) = (mid, mid);
+            }
+        }
+        (lo, hi)
+    }
+
+    /// A random move of `pose`: rotation by the exponential map of a Gaussian axis-angle
+    /// vector (σ = `spread / lever` rad) about the model centre (about the origin when
+    /// the translation is fixed); Gaussian translation (σ = `spread`); log-normal scale
+    /// (σ = `spread / lever`).
+    fn perturb(&self, pose: &Pose, spread: f64, rng: &mut ChaCha8Rng) -> Pose {
+        let o = self.options;
+        let sigma = spread / (self.lever * pose.scale);
+        let omega = gaussian3(rng) * sigma;
+        let rotation = UnitQuaternion::from_scaled_axis(omega) * pose.rotation;
+        let scale = if o.scale.is_some() {
+            {
+                let z: f64 = StandardNormal.sample(rng);
+                pose.scale * (sigma * z).exp()
+            }
+        } else {
+            pose.scale
+        };
+        let translation = if o.translation {
+            let centre = pose.to_scene(&self.centre);
+            centre.coords - rotation * (self.centre.coords * scale)
+                + gaussian3(rng) * (spread * o.translation_spread)
+        } else {
+            pose.translation
+        };
+        Pose {
+            rotation,
+            translation,
+            scale,
+        }
+    }
+
+    /// The first population: `initial_particles` prior draws, or with screening
+    /// ([`RegisterOptions::screen`]) the best `initial_particles` of that many draws by a
+    /// cheap proxy of the measurement, the point-term gain `Σ_y max(0, δ² − d_i(y)²)` at
+    /// the first kernel δ over a stride subsample of about
+    /// [`RegisterOptions::screen_points`] cloud points.
+    fn initial(&self, rng: &mut ChaCha8Rng) -> Vec<Pose> {
+        let o = self.options;
+        let draws = o.screen_draws().max(o.initial_particles);
+        let poses: Vec<Pose> = (0..draws).map(|_| self.prior(rng)).collect();
+        if draws == o.initial_particles {
+            return poses;
+        }
+        let stride = self.cloud.len().div_ceil(o.screen_points.max(1)).max(1);
+        let points: Vec<Point3<f64>> = self.cloud.iter().step_by(stride).copied().collect();
+        let k2 = (o.kernel_start * self.size).powi(2);
+        let gain: Vec<f64> = poses
+            .par_iter()
+            .map(|p| {
+                points
+                    .iter()
+                    .map(|y| {
+                        let d = self.grid.distance(&p.to_local(y)) * p.scale;
+                        (k2 * p.scale * p.scale - d * d).max(0.0)
+                    })
+                    .sum()
+            })
+            .collect();
+        let mut order: Vec<usize> = (0..draws).collect();
+        order.sort_by(|&a, &b| gain[b].total_cmp(&gain[a]).then(a.cmp(&b)));
+        order
+            .iter()
+            .take(o.initial_particles)
+            .map(|&k| poses[k])
+            .collect()
+    }
+
+    /// Runs the filter for one more object, given those already `found`.
+    pub fn run(
+        &self,
+        found: &[Pose],
+        rng: &mut ChaCha8Rng,
+        progress: &dyn Progress,
+    ) -> Result<FilterResult> {
+        let o = self.options;
+        let mut poses = self.initial(rng);
+        let mut rounds = Vec::new();
+        let mut best = (Pose::identity(), f64::NEG_INFINITY);
+        let mut stable = 0;
+        let mut kernel = o.kernel_start * self.size;
+        for round in 0..o.max_rounds {
+            kernel =
+                self.size * (o.kernel_start * o.kernel_shrink.powi(round as i32)).max(o.kernel_end);
+            let Measurement { score, existence } =
+                self.measure(found, poses.clone(), kernel, o.search_support, false, rng)?;
+            let (ib, &sb) = score
+                .iter()
+                .enumerate()
+                .max_by(|a, b| a.1.total_cmp(b.1).then(b.0.cmp(&a.0)))
+                .expect("at least one particle");
+            let previous = best.0;
+            best = (poses[ib], sb);
+            let weights = tempered_weights(&score, o.ess);
+            let ess = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
+            rounds.push(RoundStats {
+                kernel,
+                particles: poses.len(),
+                best_score: sb,
+                best_existence: existence.iter().copied().fold(0.0, f64::max),
+                ess,
+            });
+            progress.advance(1);
+            let at_end = kernel <= o.kernel_end * self.size * (1.0 + 1e-9);
+            if at_end {
+                let moved = self.lever * previous.rotation.angle_to(&best.0.rotation)
+                    + (previous.translation - best.0.translation).norm()
+                    + self.lever * (previous.scale - best.0.scale).abs();
+                let gained = sb - rounds[rounds.len().saturating_sub(2)].best_score;
+                let settled = moved < 0.5 * kernel || gained <= 5e-3 * sb.abs();
+                stable = if settled { stable + 1 } else { 0 };
+                if stable >= o.settle_rounds {
+                    break;
+                }
+            }
+            if round + 1 == o.max_rounds {
+                break;
+            }
+            // Keep the best unchanged, move the leaders downhill (a few trimmed-ICP steps at
+            // the kernel width: the local optimum of the measurement for a fixed inlier
+            // set), resample the rest (systematic) and move them at random.
+            let mut order: Vec<usize> = (0..poses.len()).collect();
+            order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
+            let mut next = Vec::with_capacity(o.particles);
+            next.push(poses[ib]);
+            let icp = IcpOptions {
+                start_distance: kernel,
+                min_distance: kernel,
+                shrink: 1.0,
+                max_iterations: o.local_steps,
+                tolerance: 0.0,
+            };
+            let leaders: Vec<Pose> = order
+                .iter()
+                .take(o.local_moves.min(o.particles.saturating_sub(1)))
+                .map(|&k| poses[k])
+                .collect();
+            next.extend(
+                leaders
+                    .par_iter()
+                    .map(|p| {
+                        refine(&self.mesh, &self.grid, self.cloud, *p, self.freedom(), &icp).pose
+                    })
+                    .collect::<Vec<_>>(),
+            );
+            let spread = o.spread * kernel;
+            let picks = systematic(&weights, o.particles - next.len(), rng);
+            next.extend(picks.iter().map(|&k| self.perturb(&poses[k], spread, rng)));
+            poses = next;
+        }
+        Ok(FilterResult {
+            pose: best.0,
+            score: best.1,
+            kernel,
+            rounds,
+        })
+    }
+}
+
+/// Weights `∝ exp((s_i − max s) / T)` with the temperature `T` chosen (bisection on
+/// log T) so that the effective sample size is `ess` × the particle count.
+pub fn tempered_weights(score: &[f64], ess: f64) -> Vec<f64> {
+    let n = score.len();
+    let max = score.iter().copied().fold(f64::NEG_INFINITY, f64::max);
+    let min = score.iter().copied().fold(f64::INFINITY, f64::min);
+    let range = max - min;
+    if n == 0 || range.is_nan() || range <= 0.0 || !range.is_finite() {
+        return vec![1.0 / n.max(1) as f64; n];
+    }
+    let weights = |t: f64| {
+        let mut w: Vec<f64> = score.iter().map(|s| ((s - max) / t).exp()).collect();
+        let sum: f64 = w.iter().sum();
+        w.iter_mut().for_each(|x| *x /= sum);
+        w
+    };
+    let ess_of = |w: &[f64]| 1.0 / w.iter().map(|x| x * x).sum::<f64>() / n as f64;
+    let (mut lo, mut hi) = ((range * 1e-6).ln(), (range * 1e3).ln());
+    for _ in 0..50 {
+        let mid = 0.5 * (lo + hi);
+        if ess_of(&weights(mid.exp())) < ess {
+            lo = mid;
+        } else {
+            hi = mid;
+        }
+    }
+    weights(hi.exp())
+}
+
+/// Systematic resampling: `count` indices drawn with probabilities `weights` (summing to 1)
+/// from one uniform offset.
+pub fn systematic(weights: &[f64], count: usize, rng: &mut ChaCha8Rng) -> Vec<usize> {
+    let u0: f64 = rng.random::<f64>() / count as f64;
+    let mut out = Vec::with_capacity(count);
+    let (mut k, mut cum) = (0, weights.first().copied().unwrap_or(1.0));
+    for m in 0..count {
+        let u = u0 + m as f64 / count as f64;
+        while u > cum && k + 1 < weights.len() {
+            k += 1;
+            cum += weights[k];
+        }
+        out.push(k);
+    }
+    out
+}
+
+fn gaussian3(rng: &mut ChaCha8Rng) -> Vector3<f64> {
+    Vector3::from_fn(|_, _| StandardNormal.sample(rng))
+}
+
+/// A Haar-uniform random rotation (a uniform unit quaternion: normalised 4-D Gaussian).
+pub fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
+    loop {
+        let q = nalgebra::Quaternion::new(
+            StandardNormal.sample(rng),
+            StandardNormal.sample(rng),
+            StandardNormal.sample(rng),
+            StandardNormal.sample(rng),
+        );
+        if q.norm() > 1e-9 {
+            return UnitQuaternion::from_quaternion(q);
+        }
+    }
+}
+
+/// The median of `values` (at least the smallest positive number; 1 when empty).
+fn median(values: &[f64]) -> f64 {
+    if values.is_empty() {
+        return 1.0;
+    }
+    let mut sorted = values.to_vec();
+    sorted.sort_by(f64::total_cmp);
+    sorted[sorted.len() / 2].max(f64::MIN_POSITIVE)
+}

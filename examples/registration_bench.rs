@@ -1,0 +1,131 @@
+//! Registration benchmark, our side: synthetic scenes (thesis §6.3.3) at several outlier
+//! levels and seeds, registered with the particle filter; prints one JSON line per run
+//! and can write every scene (PLY) and its truth for other tools
+//! (`benches/registration_compare.py` drives this and Open3D in one run).
+//!
+//! ```text
+//! cargo run --release --example registration_bench -- [--levels 0.5,0.8,0.9,0.95]
+//!     [--seeds 20] [--inliers 100] [--translation T] [--model mesh.ply] [--scenes DIR]
+//!     [--rotation-only]
+//! ```
+//!
+//! `--translation T`: the true translation is uniform in `[-T·size, T·size]³` (size =
+//! diagonal of the model's bounding box); default 0.25. Errors: rotation angle (degrees)
+//! and translation distance relative to the model size.
+
+use std::path::PathBuf;
+use std::time::Instant;
+
+use primfit::atlas::MeshShape;
+use primfit::io;
+use primfit::progress::Silent;
+use primfit::register::{RegisterOptions, register};
+use primfit::synth::{RegistrationParams, asymmetric_object, registration};
+use serde_json::json;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let get = |flag: &str| {
+        args.iter()
+            .position(|a| a == flag)
+            .and_then(|i| args.get(i + 1).cloned())
+    };
+    let levels: Vec<f64> = get("--levels")
+        .unwrap_or_else(|| "0.5,0.8,0.9,0.95".into())
+        .split(',')
+        .map(|s| s.parse().expect("outlier level"))
+        .collect();
+    let seeds: u64 = get("--seeds").map_or(20, |s| s.parse().expect("seed count"));
+    let first: u64 = get("--first-seed").map_or(0, |s| s.parse().expect("seed"));
+    let inliers: usize = get("--inliers").map_or(100, |s| s.parse().expect("inliers"));
+    let rotation_only = args.iter().any(|a| a == "--rotation-only");
+    let rel_t: f64 = get("--translation").map_or(0.25, |s| s.parse().expect("translation"));
+    let scenes = get("--scenes").map(PathBuf::from);
+    let mesh = match get("--model") {
+        Some(p) => {
+            MeshShape::new(p.clone(), io::read_mesh(p.as_ref()).expect("model")).expect("mesh")
+        }
+        None => asymmetric_object(),
+    };
+    let (lo, hi) = primfit::cloud::bounds_of(&mesh.mesh.vertices).expect("vertices");
+    let size = (hi - lo).norm();
+    if let Some(dir) = &scenes {
+        std::fs::create_dir_all(dir).expect("scene folder");
+        io::write_mesh(
+            &dir.join("model.ply"),
+            &mesh.mesh,
+            None,
+            io::Encoding::BinaryLittleEndian,
+        )
+        .expect("model");
+    }
+    for &level in &levels {
+        let outliers = (inliers as f64 * level / (1.0 - level)).round() as usize;
+        for seed in first..first + seeds {
+            let params = RegistrationParams {
+                inliers,
+                outliers,
+                translation: if rotation_only { 0.0 } else { rel_t * size },
+                seed,
+                ..Default::default()
+            };
+            let scene = registration(&mesh, &params).expect("scene");
+            let truth = scene.truth[0].pose;
+            if let Some(dir) = &scenes {
+                let name = format!("scene_{level}_{seed}");
+                io::write_cloud(
+                    &dir.join(format!("{name}.ply")),
+                    &scene.cloud,
+                    io::Encoding::BinaryLittleEndian,
+                )
+                .expect("scene");
+                let t = truth.translation;
+                let r = truth.rotation.to_rotation_matrix();
+                let doc = json!({"level": level, "seed": seed, "size": size,
+                    "translation": [t.x, t.y, t.z],
+                    "rotation_matrix": r.matrix().row_iter().map(|row| row.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>()});
+                io::write_json_atomic(&dir.join(format!("{name}.json")), &doc).expect("truth");
+            }
+            let d = RegisterOptions::default();
+            let options = RegisterOptions {
+                translation: !rotation_only,
+                count: Some(1),
+                seed,
+                initial_particles: get("--initial")
+                    .map_or(d.initial_particles, |s| s.parse().expect("count")),
+                particles: get("--particles").map_or(d.particles, |s| s.parse().expect("count")),
+                kernel_start: get("--kernel-start")
+                    .map_or(d.kernel_start, |s| s.parse().expect("fraction")),
+                kernel_end: get("--kernel-end")
+                    .map_or(d.kernel_end, |s| s.parse().expect("fraction")),
+                ess: get("--ess").map_or(d.ess, |s| s.parse().expect("share")),
+                local_moves: get("--local-moves")
+                    .map_or(d.local_moves, |s| s.parse().expect("count")),
+                translation_spread: get("--tspread")
+                    .map_or(d.translation_spread, |s| s.parse().expect("factor")),
+                screen: get("--screen").map(|s| s.parse().expect("count")),
+                ..d
+            };
+            let t0 = Instant::now();
+            let result = register(&scene.cloud, &mesh, &options, &Silent).expect("register");
+            let seconds = t0.elapsed().as_secs_f64();
+            let o = &result.objects[0];
+            let pose = o.primitive.pose;
+            let rot = pose.rotation.angle_to(&truth.rotation).to_degrees();
+            let trans = (pose.translation - truth.translation).norm() / size;
+            let frot = o
+                .filter_pose
+                .rotation
+                .angle_to(&truth.rotation)
+                .to_degrees();
+            let ftrans = (o.filter_pose.translation - truth.translation).norm() / size;
+            println!(
+                "{}",
+                json!({"method": "primfit", "level": level, "seed": seed, "rotation_deg": rot,
+                    "translation_rel": trans, "seconds": seconds, "existence": o.existence,
+                    "inlier_share": o.inlier_share, "filter_rotation_deg": frot,
+                    "filter_translation_rel": ftrans, "rounds": o.rounds.len()})
+            );
+        }
+    }
+}
