@@ -73,7 +73,7 @@ pub struct RegisterOptions {
     /// Particles of the first round (drawn from the prior).
     pub initial_particles: usize,
     /// Prior draws screened for the first population (see
-    /// [`RegisterOptions::initial_particles`]); `None` = none with rotation only, 16 ×
+    /// [`RegisterOptions::initial_particles`]); `None` = none with rotation only, 8 ×
     /// `initial_particles` with translation search (the 6-D prior is far larger).
     pub screen: Option<usize>,
     /// Cloud points (a stride subsample) of the screening proxy.
@@ -142,7 +142,7 @@ impl Default for RegisterOptions {
             scale: None,
             count: None,
             max_objects: 8,
-            initial_particles: 1000,
+            initial_particles: 2000,
             screen: None,
             screen_points: 500,
             particles: 200,
@@ -237,7 +237,7 @@ impl RegisterOptions {
     /// Prior draws screened for the first population (resolves `screen: None`).
     pub fn screen_draws(&self) -> usize {
         self.screen.unwrap_or(if self.translation {
-            16 * self.initial_particles
+            8 * self.initial_particles
         } else {
             self.initial_particles
         })
