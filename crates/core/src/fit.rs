@@ -9,11 +9,14 @@
 //! | `spacing` | `size / 2` (the thesis's hallway: 1 m squares on a 0.5 m lattice) |
 //! | `radius` | `size / 10` (tube radius of cylinders and elbows) |
 //! | `bend` | `spacing` (elbow centre-line radius) |
-//! | `cap` | `spacing`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; `d_cap = cap²` |
+//! | `cap` | `max(spacing, 5σ)`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; on very noisy scans (noise σ, see below) a point within 5σ of a surface still counts as explained. `d_cap = cap²` |
+//! | noise σ | the median off-plane spread of the flattest half of the k = 16 nearest-neighbour neighbourhoods ([`crate::surface::noise_level`]) |
 //! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
 //! | `beta` | 32 candidates per point (24 was the least that recovered every synthetic pipe) |
 //! | `alpha` | 10 samples per candidate (thesis §6.3), `independent` model only |
-//! | lattice origin | the scene origin; frame: the scene axes |
+//! | frame | [`FrameChoice::Axis`] (the scene axes) in the library; the CLI defaults to `auto`: the scan's dominant axes ([`crate::frame::estimate_frame`]) |
+//! | lattice origin | `axis`: the scene origin; `auto` and a given frame without origin: grid planes on the data ([`crate::frame::grid_origin`]) |
+//! | refinement | off in the library (`FitOptions::refine = None`); the CLI turns it on ([`RefineOptions::default`]) |
 
 use std::time::Instant;
 
@@ -22,10 +25,13 @@ use serde_json::{Value, json};
 
 use crate::atlas::{MeshShape, Shape, ShapeKind, TriMesh};
 use crate::chamfer::{ChamferOptions, Coefficients, Evaluator, LossValue, PointModel};
+use crate::frame::{FrameChoice, FrameEstimate, estimate_frame, grid_origin};
 use crate::lattice::{CandidateSet, LatticeSpec};
 use crate::progress::{Progress, Silent};
+use crate::refine::{RefineContext, RefineOptions, Refined, refine};
 use crate::solve::{Solution, SolverOptions, solve};
 use crate::spatial::{PointIndex, median_spacing};
+use crate::surface::{DEFAULT_MAX_POINTS, DEFAULT_NEIGHBOURS, local_planes, noise_level};
 use crate::{Error, PointCloud, Primitive, Result};
 
 /// User-facing options of [`fit`]; `None` means "derive from the cloud".
@@ -43,6 +49,10 @@ pub struct FitOptions {
     pub spacing: Option<f64>,
     /// A lattice point.
     pub origin: Option<Point3<f64>>,
+    /// How the lattice frame is chosen (default: the scene axes).
+    pub frame: FrameChoice,
+    /// Continuous refinement after the existence decision (default: none).
+    pub refine: Option<RefineOptions>,
     /// Spacing of candidate surface samples.
     pub sample_spacing: Option<f64>,
     /// Point-term model.
@@ -82,6 +92,16 @@ pub struct Settings {
     pub spacing: f64,
     /// See [`FitOptions::origin`].
     pub origin: Point3<f64>,
+    /// Lattice frame → scene.
+    pub frame: UnitQuaternion<f64>,
+    /// How the frame was chosen: `axis`, `auto` or `given`.
+    pub frame_source: &'static str,
+    /// Share of flat normals within ≈ 14° of a frame axis (estimated frames only).
+    pub frame_support: Option<f64>,
+    /// The cloud's estimated noise σ (scene units; see the module docs), 0 if unknown.
+    pub noise: f64,
+    /// Refinement options, if refinement runs.
+    pub refine: Option<RefineOptions>,
     /// See [`FitOptions::sample_spacing`].
     pub sample_spacing: f64,
     /// The cloud's median nearest-neighbour distance.
@@ -159,6 +179,8 @@ impl Settings {
             ));
         }
         let point_spacing = median_spacing(&cloud.points, index, 2000).unwrap_or(diagonal / 100.0);
+        let planes = local_planes(&cloud.points, index, DEFAULT_NEIGHBOURS, DEFAULT_MAX_POINTS);
+        let noise = noise_level(&planes).unwrap_or(0.0);
         let kinds = if o.kinds.is_empty() {
             vec![ShapeKind::Square]
         } else {
@@ -168,7 +190,7 @@ impl Settings {
         let spacing = positive("spacing", o.spacing.unwrap_or(size / 2.0))?;
         let radius = positive("radius", o.radius.unwrap_or(size / 10.0))?;
         let bend = positive("bend", o.bend.unwrap_or(spacing))?;
-        let cap = o.cap.unwrap_or(spacing);
+        let cap = o.cap.unwrap_or(spacing.max(5.0 * noise));
         if !(cap.is_finite() && cap >= 0.0) {
             return Err(Error::invalid(format!(
                 "--cap must be a finite distance ≥ 0, got {cap}"
@@ -204,13 +226,40 @@ impl Settings {
             point_weight: o.point_weight.unwrap_or(1.0),
         };
         chamfer.validate()?;
+        if let Some(r) = &o.refine {
+            r.validate()?;
+        }
+        let (frame, frame_support) = match &o.frame {
+            FrameChoice::Axis => (UnitQuaternion::identity(), None),
+            FrameChoice::Given { rotation, .. } => (*rotation, None),
+            FrameChoice::Auto => match estimate_frame(&planes, o.seed) {
+                Some(FrameEstimate { rotation, support }) => (rotation, Some(support)),
+                None => (UnitQuaternion::identity(), None),
+            },
+        };
+        let given_origin = match &o.frame {
+            FrameChoice::Given {
+                origin: Some(p), ..
+            } => Some(*p),
+            _ => o.origin,
+        };
+        let origin = match (given_origin, &o.frame) {
+            (Some(p), _) => p,
+            (None, FrameChoice::Axis) => Point3::origin(),
+            (None, _) => grid_origin(&planes, &cloud.points, &frame, spacing, size),
+        };
         Ok(Settings {
             kinds,
             size,
             radius,
             bend,
             spacing,
-            origin: o.origin.unwrap_or_else(Point3::origin),
+            origin,
+            frame,
+            frame_source: o.frame.name(),
+            frame_support,
+            noise,
+            refine: o.refine.clone(),
             sample_spacing,
             point_spacing,
             cap,
@@ -255,7 +304,7 @@ impl Settings {
             shapes: self.shapes(),
             spacing: self.spacing,
             origin: self.origin,
-            frame: UnitQuaternion::identity(),
+            frame: self.frame,
             sample_spacing: self.sample_spacing,
         }
     }
@@ -263,6 +312,15 @@ impl Settings {
     /// Every setting as JSON (`result.json`'s `"settings"`).
     pub fn to_json(&self) -> Value {
         let lim = |v: Option<usize>| v.map_or(Value::from("inf"), Value::from);
+        let frame = FrameEstimate {
+            rotation: self.frame,
+            support: self.frame_support.unwrap_or(f64::NAN),
+        }
+        .to_json(self.frame_source);
+        let refine = self.refine.as_ref().map(|r| {
+            json!({ "rounds": r.rounds, "iterations": r.iterations, "trim": r.trim.unwrap_or(self.cap),
+                    "max_growth": r.max_growth, "recheck": r.recheck })
+        });
         json!({
             "types": self.kinds.iter().map(|k| k.name()).collect::<Vec<_>>(),
             "size": self.size,
@@ -270,6 +328,9 @@ impl Settings {
             "bend": self.bend,
             "spacing": self.spacing,
             "origin": [self.origin.x, self.origin.y, self.origin.z],
+            "frame": frame,
+            "noise": self.noise,
+            "refine": refine,
             "sample_spacing": self.sample_spacing,
             "point_spacing": self.point_spacing,
             "model": self.chamfer.model.name(),
@@ -307,6 +368,10 @@ pub struct FitStats {
     pub coefficient_seconds: f64,
     /// Seconds spent in L-BFGS, thresholding and polish.
     pub solve_seconds: f64,
+    /// Seconds spent refining (0 without refinement).
+    pub refine_seconds: f64,
+    /// Primitives the post-refinement existence check removed.
+    pub refine_dropped: usize,
 }
 
 /// The result of [`fit`].
@@ -474,8 +539,25 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     let chosen: Vec<usize> = (0..candidates.len())
         .filter(|&i| solution.exists[i])
         .collect();
-    let primitives = chosen.iter().map(|&i| candidates.primitive(i)).collect();
-    let existence = chosen.iter().map(|&i| solution.probability[i]).collect();
+    let mut primitives: Vec<Primitive> = chosen.iter().map(|&i| candidates.primitive(i)).collect();
+    let mut existence: Vec<f64> = chosen.iter().map(|&i| solution.probability[i]).collect();
+    let mut refined = None;
+    if let Some(options) = &settings.refine {
+        let ctx = RefineContext {
+            points: &cloud.points,
+            index: &index,
+            sample_spacing: settings.sample_spacing,
+            chamfer: &settings.chamfer,
+        };
+        let r: Refined = refine(&ctx, &primitives, options)?;
+        progress.message(&format!(
+            "refinement: binary chamfer {:.6} → {:.6}, {} primitives dropped, {:.2} s",
+            r.loss_before, r.loss_after, r.dropped, r.seconds
+        ));
+        existence = r.source.iter().map(|&i| existence[i]).collect();
+        primitives = r.primitives.clone();
+        refined = Some(r);
+    }
     let stats = FitStats {
         points: cloud.len(),
         candidates: candidates.len(),
@@ -485,6 +567,8 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         lattice_seconds,
         coefficient_seconds,
         solve_seconds,
+        refine_seconds: refined.as_ref().map_or(0.0, |r| r.seconds),
+        refine_dropped: refined.as_ref().map_or(0, |r| r.dropped),
     };
     Ok(FitResult {
         settings,

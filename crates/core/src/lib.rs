@@ -15,9 +15,12 @@
 //! |---|---|
 //! | [`atlas`] | primitive *types*: local-frame surfaces (disk, square, cylinder, elbow, sphere, mesh) |
 //! | [`primitive`] | a type placed in the scene by a [`primitive::Pose`] |
+//! | [`surface`] | local normals, flatness and noise level by PCA of k nearest neighbours |
+//! | [`frame`] | the lattice frame: the scan's dominant axes and a grid origin on the data |
 //! | [`lattice`] | the candidate set G = types × orientations × translation grid |
 //! | [`chamfer`] | the probabilistic chamfer distance: coefficients, value, gradient |
 //! | [`solve`] | projected L-BFGS over existence, thresholding, discrete polish |
+//! | [`refine`] | continuous pose and size refinement of chosen primitives, existence re-check |
 //! | [`synth`] | synthetic scenes with ground truth |
 //! | [`metrics`] | the measures of DESIGN §4 |
 //! | [`io`] | PLY and JSON |
@@ -33,13 +36,16 @@ pub mod chamfer;
 pub mod cloud;
 pub mod error;
 pub mod fit;
+pub mod frame;
 pub mod io;
 pub mod lattice;
 pub mod metrics;
 pub mod primitive;
 pub mod progress;
+pub mod refine;
 pub mod solve;
 pub mod spatial;
+pub mod surface;
 pub mod synth;
 
 pub use atlas::{Shape, ShapeKind, TriMesh};
