@@ -10,7 +10,7 @@
 //! | `radius` | `size / 10` (tube radius of cylinders and elbows) |
 //! | `bend` | `spacing` (elbow centre-line radius) |
 //! | `cap` | `max(spacing, 5σ)`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; on very noisy scans (noise σ, see below) a point within 5σ of a surface still counts as explained. `d_cap = cap²` |
-//! | noise σ | the median off-plane spread of the flattest half of the k = 16 nearest-neighbour neighbourhoods ([`crate::surface::noise_level`]) |
+//! | noise σ | the median off-plane spread of the flattest half of the k = 32 nearest-neighbour neighbourhoods ([`crate::surface::noise_level`]) |
 //! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
 //! | `beta` | 32 candidates per point (24 was the least that recovered every synthetic pipe) |
 //! | `alpha` | 10 samples per candidate (thesis §6.3), `independent` model only |
@@ -25,7 +25,7 @@ use serde_json::{Value, json};
 
 use crate::atlas::{MeshShape, Shape, ShapeKind, TriMesh};
 use crate::chamfer::{ChamferOptions, Coefficients, Evaluator, LossValue, PointModel};
-use crate::frame::{FrameChoice, FrameEstimate, estimate_frame, grid_origin};
+use crate::frame::{FrameChoice, FrameEstimate, estimate_frame, grid_origin, realign};
 use crate::lattice::{CandidateSet, LatticeSpec};
 use crate::progress::{Progress, Silent};
 use crate::refine::{RefineContext, RefineOptions, Refined, refine};
@@ -372,6 +372,8 @@ pub struct FitStats {
     pub refine_seconds: f64,
     /// Primitives the post-refinement existence check removed.
     pub refine_dropped: usize,
+    /// Lattice passes run (2 when the lattice was re-aligned to a first refined fit).
+    pub passes: usize,
 }
 
 /// The result of [`fit`].
@@ -470,7 +472,11 @@ pub fn binary_chamfer(
     Ok(Evaluator::new(&coeffs).binary_value(&vec![true; set.len()]))
 }
 
-/// Fits primitives to `cloud`.
+/// Fits primitives to `cloud`: a lattice pass (candidates, coefficients, L-BFGS, polish),
+/// then, with [`FitOptions::refine`], continuous refinement ([`crate::refine`]). With an
+/// estimated frame (`auto`) and refinement, the lattice is then re-aligned to the refined
+/// primitives ([`crate::frame::realign`]: their axes and the grid phase of their centres)
+/// and fitted and refined once more; the pass with the lower binary chamfer is kept.
 pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) -> Result<FitResult> {
     if cloud.is_empty() {
         return Err(Error::invalid("the cloud is empty"));
@@ -485,7 +491,43 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     let index = PointIndex::new(&cloud.points);
     let settings = Settings::resolve(cloud, &index, options)?;
     progress.message(&format!("settings: {}", settings.to_json()));
+    let first = fit_pass(cloud, &index, settings, progress)?;
+    let realign_pass = first.settings.refine.is_some()
+        && first.settings.frame_source == "auto"
+        && !first.primitives.is_empty();
+    if !realign_pass {
+        return Ok(first);
+    }
+    let (frame, origin) = realign(
+        &first.primitives,
+        &first.settings.frame,
+        first.settings.spacing,
+    );
+    let mut settings = first.settings.clone();
+    settings.frame = frame;
+    settings.origin = origin;
+    progress.message(&format!(
+        "re-aligned lattice: frame {:?}, origin {origin:?}",
+        frame.quaternion().coords
+    ));
+    let second = fit_pass(cloud, &index, settings, progress)?;
+    let loss = |r: &FitResult| binary_chamfer(cloud, &r.primitives, &r.settings).map(|l| l.total);
+    let (a, b) = (loss(&first)?, loss(&second)?);
+    progress.message(&format!(
+        "binary chamfer: first pass {a:.6}, re-aligned pass {b:.6}"
+    ));
+    let mut best = if b <= a { second } else { first };
+    best.stats.passes = 2;
+    Ok(best)
+}
 
+/// One lattice fit under `settings`, refined when `settings.refine` is set.
+fn fit_pass(
+    cloud: &PointCloud,
+    index: &PointIndex,
+    settings: Settings,
+    progress: &dyn Progress,
+) -> Result<FitResult> {
     let t0 = Instant::now();
     let candidates = CandidateSet::build(&settings.lattice(), cloud)?;
     let lattice_seconds = t0.elapsed().as_secs_f64();
@@ -545,7 +587,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     if let Some(options) = &settings.refine {
         let ctx = RefineContext {
             points: &cloud.points,
-            index: &index,
+            index,
             sample_spacing: settings.sample_spacing,
             chamfer: &settings.chamfer,
         };
@@ -569,6 +611,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         solve_seconds,
         refine_seconds: refined.as_ref().map_or(0.0, |r| r.seconds),
         refine_dropped: refined.as_ref().map_or(0, |r| r.dropped),
+        passes: 1,
     };
     Ok(FitResult {
         settings,

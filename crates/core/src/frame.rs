@@ -1,7 +1,8 @@
 //! The lattice's frame: the scan's dominant orthogonal directions (a "Manhattan frame")
 //! and a grid origin that puts lattice planes on the data.
 //!
-//! **Frame.** Given unoriented local normals `n_k` (from [`crate::surface`]), a rotation
+//! **Frame.** Given the unoriented local normals `n_k` of the flattest half of the
+//! neighbourhoods (from [`crate::surface`]), a rotation
 //! `R` with columns `e_1, e_2, e_3` is scored by
 //!
 //! `S(R) = Σ_k max_i κ(n_k · e_i)`,  `κ(c) = exp(−(1 − c²) / (2 s²))`,  `s = sin 10°`,
@@ -31,7 +32,7 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::{Value, json};
 
 use crate::surface::LocalPlane;
-use crate::{Error, Result};
+use crate::{Error, Primitive, Result};
 
 /// `s` of the kernel κ: normals within about this angle of an axis count (radians).
 const KERNEL_ANGLE: f64 = 10.0 * std::f64::consts::PI / 180.0;
@@ -39,8 +40,18 @@ const KERNEL_ANGLE: f64 = 10.0 * std::f64::consts::PI / 180.0;
 /// Normals within this angle of a lattice axis vote for its grid offset (radians).
 const ORIGIN_ANGLE: f64 = 15.0 * std::f64::consts::PI / 180.0;
 
-/// Local planes flatter than this take part (see [`LocalPlane::flatness`]).
-const MAX_FLATNESS: f64 = 0.05;
+/// The flattest half of the local planes take part (see [`LocalPlane::flatness`]):
+/// the threshold is their median flatness. A fixed threshold would keep almost nothing
+/// on a noisy tube, where every neighbourhood is noisy.
+fn flat_threshold(planes: &[LocalPlane]) -> f64 {
+    if planes.is_empty() {
+        return 0.0;
+    }
+    let mut f: Vec<f64> = planes.iter().map(|p| p.flatness).collect();
+    let mid = (f.len() - 1) / 2;
+    f.select_nth_unstable_by(mid, f64::total_cmp);
+    f[mid]
+}
 
 /// Pairs of normals tried as frame candidates.
 const CANDIDATE_PAIRS: usize = 256;
@@ -154,7 +165,7 @@ fn numbers(v: Option<&Value>, n: usize, what: &str) -> Result<Vec<f64>> {
 pub struct FrameEstimate {
     /// Lattice frame → scene (columns of the matrix are the lattice axes).
     pub rotation: UnitQuaternion<f64>,
-    /// Share of the flat normals within [`KERNEL_ANGLE`]·√2 (≈ 14°) of a frame axis, in
+    /// Share of the flattest half of the normals within [`KERNEL_ANGLE`]·√2 (≈ 14°) of a frame axis, in
     /// [0, 1]: near 1 for rooms, lower for tubes and free-form objects.
     pub support: f64,
 }
@@ -200,12 +211,21 @@ fn frame_from_pair(a: &Vector3<f64>, b: &Vector3<f64>) -> Option<Matrix3<f64>> {
 }
 
 /// One weighted Procrustes step: the rotation that best maps the frame axes onto the
-/// sign-aligned normals assigned to them.
+/// sign-aligned normals assigned to them (weights κ).
 fn procrustes_step(m: &Matrix3<f64>, normals: &[Vector3<f64>]) -> Matrix3<f64> {
+    procrustes_step_weighted(m, normals, &vec![1.0; normals.len()])
+}
+
+/// [`procrustes_step`] with an extra weight per direction.
+fn procrustes_step_weighted(
+    m: &Matrix3<f64>,
+    normals: &[Vector3<f64>],
+    weights: &[f64],
+) -> Matrix3<f64> {
     let mut h = Matrix3::zeros();
-    for n in normals {
+    for (n, extra) in normals.iter().zip(weights) {
         let (i, c) = nearest_axis(m, n);
-        let w = kernel(c);
+        let w = kernel(c) * extra;
         let aligned = n * c.signum();
         // Maximise Σ w aᵀ R e_i  ⇔  maximise tr(R H) with H = Σ w e_i aᵀ.
         h += w * Vector3::ith(i, 1.0) * aligned.transpose();
@@ -268,11 +288,12 @@ fn canonical(m: &Matrix3<f64>) -> UnitQuaternion<f64> {
     }
 }
 
-/// The flat normals of `planes`, evenly strided to at most `max`.
+/// The normals of the flattest half of `planes`, evenly strided to at most `max`.
 fn flat_normals(planes: &[LocalPlane], max: usize) -> Vec<Vector3<f64>> {
+    let threshold = flat_threshold(planes);
     let flat: Vec<Vector3<f64>> = planes
         .iter()
-        .filter(|p| p.flatness <= MAX_FLATNESS)
+        .filter(|p| p.flatness <= threshold)
         .map(|p| p.normal)
         .collect();
     let stride = flat.len().div_ceil(max.max(1)).max(1);
@@ -280,7 +301,7 @@ fn flat_normals(planes: &[LocalPlane], max: usize) -> Vec<Vector3<f64>> {
 }
 
 /// The dominant frame of `planes` (see the module docs), or `None` when fewer than 3
-/// flat normals exist. Deterministic for a given `seed`.
+/// normals exist. Deterministic for a given `seed`.
 pub fn estimate_frame(planes: &[LocalPlane], seed: u64) -> Option<FrameEstimate> {
     let normals = flat_normals(planes, SCORE_NORMALS);
     if normals.len() < 3 {
@@ -329,10 +350,8 @@ pub fn grid_origin(
     }
     let m = rotation.to_rotation_matrix().into_inner();
     let cos_max = ORIGIN_ANGLE.cos();
-    let flat: Vec<&LocalPlane> = planes
-        .iter()
-        .filter(|p| p.flatness <= MAX_FLATNESS)
-        .collect();
+    let threshold = flat_threshold(planes);
+    let flat: Vec<&LocalPlane> = planes.iter().filter(|p| p.flatness <= threshold).collect();
     let mut offset = Vector3::zeros();
     for i in 0..3 {
         let axis = m.column(i).into_owned();
@@ -348,6 +367,47 @@ pub fn grid_origin(
         };
     }
     Point3::from(m * offset)
+}
+
+/// The lattice frame and origin that fit already refined `primitives` best: starting
+/// from `start`, Procrustes iterations on the primitives' local axes (each primitive's
+/// three rotated axes, weighted by its area) give the rotation; the origin along each
+/// axis is the area-weighted circular mean, with period `spacing`, of the primitives'
+/// centre coordinates (centres of lattice candidates sit on grid nodes).
+pub fn realign(
+    primitives: &[Primitive],
+    start: &UnitQuaternion<f64>,
+    spacing: f64,
+) -> (UnitQuaternion<f64>, Point3<f64>) {
+    let mut axes = Vec::new();
+    let mut weights = Vec::new();
+    for p in primitives {
+        let m = p.pose.rotation.to_rotation_matrix().into_inner();
+        for i in 0..3 {
+            axes.push(m.column(i).into_owned());
+            weights.push(p.area());
+        }
+    }
+    let mut m = start.to_rotation_matrix().into_inner();
+    for _ in 0..POLISH_ITERATIONS {
+        m = procrustes_step_weighted(&m, &axes, &weights);
+    }
+    let rotation = canonical(&m);
+    let r = rotation.to_rotation_matrix().into_inner();
+    let mut offset = Vector3::zeros();
+    for i in 0..3 {
+        let axis = r.column(i).into_owned();
+        let (s, c) = primitives.iter().fold((0.0, 0.0), |(s, c), p| {
+            let a = TAU * p.pose.translation.dot(&axis) / spacing;
+            (s + p.area() * a.sin(), c + p.area() * a.cos())
+        });
+        offset[i] = if s == 0.0 && c == 0.0 {
+            0.0
+        } else {
+            s.atan2(c) * spacing / TAU
+        };
+    }
+    (rotation, Point3::from(r * offset))
 }
 
 /// The circular mean of `values` with period `period`, in `[−period/2, period/2]`.

@@ -34,8 +34,19 @@
 //! **Existence re-check.** Refinement can make primitives redundant (two squares slide
 //! onto the same wall section). The refined set is scored with the binary chamfer
 //! ([`crate::chamfer`], same options as the fit) and the discrete [`polish`] removes
-//! every primitive whose removal does not increase it: redundant ones are dropped, i.e.
-//! merged into their neighbours.
+//! every primitive whose removal does not increase it: redundant ones are dropped.
+//!
+//! **Merging.** A primitive that is only partly redundant (a third cylinder overlapping
+//! two that tile a run, a cylinder reaching into an elbow) survives that check, because
+//! its neighbours were refined with its points taken. So each primitive, fewest points
+//! first, is tried for removal *with* its neighbours (the primitives that would own its
+//! points) re-refined on the points they would then own; the removal is kept when the
+//! local chamfer (the points of the primitive and of its neighbours, each at
+//! `min(d², d_cap)`, plus the samples of all primitives involved) does not increase.
+//! In this check the samples are weighted as if the surfaces carried as many samples as
+//! the cloud has points (the balance of the DESIGN §4 chamfer); with the fitter's coarser
+//! samples, overlapping primitives that shave a little off many point distances would
+//! always win.
 
 use std::time::Instant;
 
@@ -65,6 +76,8 @@ pub struct RefineOptions {
     pub max_growth: f64,
     /// Re-check existence with the binary chamfer after refinement.
     pub recheck: bool,
+    /// Try to merge each primitive into its neighbours (see the module docs).
+    pub merge: bool,
 }
 
 impl Default for RefineOptions {
@@ -75,6 +88,7 @@ impl Default for RefineOptions {
             trim: None,
             max_growth: 2.0,
             recheck: true,
+            merge: true,
         }
     }
 }
@@ -166,8 +180,22 @@ pub fn refine(
     } else {
         vec![true; current.len()]
     };
-    let source: Vec<usize> = (0..current.len()).filter(|&i| keep[i]).collect();
-    let primitives: Vec<Primitive> = source.iter().map(|&i| current[i].clone()).collect();
+    let mut source: Vec<usize> = (0..current.len()).filter(|&i| keep[i]).collect();
+    let mut primitives: Vec<Primitive> = source.iter().map(|&i| current[i].clone()).collect();
+    if options.merge {
+        let lims: Vec<Vec<(f64, f64)>> = source.iter().map(|&i| limits[i].clone()).collect();
+        let area: f64 = primitives.iter().map(Primitive::area).sum();
+        let merged = Merger {
+            ctx,
+            trim,
+            iterations: options.iterations,
+            sample_weight: ctx.sample_spacing.powi(2) * ctx.points.len() as f64
+                / area.max(f64::MIN_POSITIVE),
+        }
+        .run(primitives, lims)?;
+        source = merged.1.iter().map(|&k| source[k]).collect();
+        primitives = merged.0;
+    }
     let loss_after = binary_loss(ctx, &primitives)?;
     Ok(Refined {
         dropped: current.len() - primitives.len(),
@@ -177,6 +205,182 @@ pub fn refine(
         loss_after,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The merge pass of the module docs.
+struct Merger<'a> {
+    ctx: &'a RefineContext<'a>,
+    trim: f64,
+    iterations: usize,
+    /// Weight of one sample's squared distance: `s² J / A` (sample spacing `s`, `J` points,
+    /// model area `A`), so that the samples count as if the surfaces carried as many
+    /// samples as there are points, as in the DESIGN §4 chamfer.
+    sample_weight: f64,
+}
+
+impl Merger<'_> {
+    /// Tries every primitive once, fewest points first; returns the survivors and their
+    /// indices in `prims`.
+    fn run(
+        &self,
+        prims: Vec<Primitive>,
+        limits: Vec<Vec<(f64, f64)>>,
+    ) -> Result<(Vec<Primitive>, Vec<usize>)> {
+        let mut owner = owners(self.ctx.points, &prims, self.trim)?;
+        let mut count = vec![0usize; prims.len()];
+        for o in owner.iter().flatten() {
+            count[*o] += 1;
+        }
+        let mut order: Vec<usize> = (0..prims.len()).collect();
+        order.sort_by_key(|&i| (count[i], i));
+        let mut alive: Vec<(usize, Primitive)> = prims.into_iter().enumerate().collect();
+        for id in order {
+            let Some(pos) = alive.iter().position(|a| a.0 == id) else {
+                continue;
+            };
+            if let Some(next) = self.try_remove(&alive, &owner, pos, &limits)? {
+                alive = next;
+                let model: Vec<Primitive> = alive.iter().map(|a| a.1.clone()).collect();
+                owner = owners(self.ctx.points, &model, self.trim)?;
+            }
+        }
+        Ok(alive.into_iter().map(|(k, p)| (p, k)).unzip())
+    }
+
+    /// The model without `alive[pos]` and with its neighbours re-refined, if that does not
+    /// raise the local chamfer.
+    fn try_remove(
+        &self,
+        alive: &[(usize, Primitive)],
+        owners: &[Option<usize>],
+        pos: usize,
+        limits: &[Vec<(f64, f64)>],
+    ) -> Result<Option<Vec<(usize, Primitive)>>> {
+        let model: Vec<Primitive> = alive.iter().map(|a| a.1.clone()).collect();
+        let mine: Vec<usize> = (0..owners.len())
+            .filter(|&j| owners[j] == Some(pos))
+            .collect();
+        let mut rest: Vec<(usize, Primitive)> = alive.to_vec();
+        rest.remove(pos);
+        let rest_model: Vec<Primitive> = rest.iter().map(|a| a.1.clone()).collect();
+        let heirs = owners_of(self.ctx.points, &mine, &rest_model, self.trim)?;
+        let mut neighbours: Vec<usize> = heirs.iter().flatten().copied().collect();
+        neighbours.sort_unstable();
+        neighbours.dedup();
+        // The region: the removed primitive's points and its neighbours' points.
+        let mut region = mine.clone();
+        for (j, o) in owners.iter().enumerate() {
+            if let Some(o) = o {
+                let k = if *o > pos {
+                    o - 1
+                } else if *o == pos {
+                    continue;
+                } else {
+                    *o
+                };
+                if neighbours.binary_search(&k).is_ok() {
+                    region.push(j);
+                }
+            }
+        }
+        region.sort_unstable();
+        let before = self.local_cost(
+            &region,
+            &model,
+            std::iter::once(pos)
+                .chain(neighbours.iter().map(|&k| if k >= pos { k + 1 } else { k })),
+        )?;
+        // Re-refine the neighbours on the region points each owns without the removed
+        // one, re-assigning the region between rounds.
+        let mut trial = rest.clone();
+        for _ in 0..MERGE_ROUNDS {
+            let model: Vec<Primitive> = trial.iter().map(|a| a.1.clone()).collect();
+            let region_owner = owners_of(self.ctx.points, &region, &model, self.trim)?;
+            let refitted: Vec<Primitive> = neighbours
+                .par_iter()
+                .map(|&k| {
+                    let pts: Vec<Point3<f64>> = region
+                        .iter()
+                        .zip(&region_owner)
+                        .filter(|(_, o)| **o == Some(k))
+                        .map(|(&j, _)| self.ctx.points[j])
+                        .collect();
+                    let lim = &limits[trial[k].0];
+                    Fitter::new(self.ctx, &pts, lim).run(trial[k].1.clone(), 2 * self.iterations)
+                })
+                .collect();
+            for (&k, p) in neighbours.iter().zip(refitted) {
+                trial[k].1 = p;
+            }
+        }
+        let trial_model: Vec<Primitive> = trial.iter().map(|a| a.1.clone()).collect();
+        let after = self.local_cost(&region, &trial_model, neighbours.iter().copied())?;
+        Ok((after <= before).then_some(trial))
+    }
+
+    /// `w_point Σ_{j ∈ region} min(d(y_j, model)², d_cap) + w_prim Σ_{i ∈ sampled} Σ_x d(x, D)²`.
+    fn local_cost(
+        &self,
+        region: &[usize],
+        model: &[Primitive],
+        sampled: impl Iterator<Item = usize>,
+    ) -> Result<f64> {
+        let chamfer = self.ctx.chamfer;
+        let mut cost = 0.0;
+        if !model.is_empty() {
+            let index = PrimitiveIndex::new(model)?;
+            cost += chamfer.point_weight
+                * region
+                    .par_iter()
+                    .map(|&j| {
+                        let d = index
+                            .nearest(&self.ctx.points[j])
+                            .map_or(f64::INFINITY, |r| r.1);
+                        (d * d).min(chamfer.cap)
+                    })
+                    .sum::<f64>();
+        } else {
+            cost += chamfer.point_weight * chamfer.cap * region.len() as f64;
+        }
+        for i in sampled {
+            let p = &model[i];
+            cost += chamfer.primitive_weight
+                * self.sample_weight
+                * p.sample_surface(self.ctx.sample_spacing)
+                    .iter()
+                    .filter_map(|x| self.ctx.index.nearest(x).map(|r| r.1))
+                    .sum::<f64>();
+        }
+        Ok(cost)
+    }
+}
+
+/// For each point, its nearest primitive within `trim` (or `None`).
+fn owners(points: &[Point3<f64>], prims: &[Primitive], trim: f64) -> Result<Vec<Option<usize>>> {
+    let all: Vec<usize> = (0..points.len()).collect();
+    owners_of(points, &all, prims, trim)
+}
+
+/// For each of the points `which`, its nearest primitive within `trim` (or `None`).
+fn owners_of(
+    points: &[Point3<f64>],
+    which: &[usize],
+    prims: &[Primitive],
+    trim: f64,
+) -> Result<Vec<Option<usize>>> {
+    if prims.is_empty() {
+        return Ok(vec![None; which.len()]);
+    }
+    let index = PrimitiveIndex::new(prims)?;
+    Ok(which
+        .par_iter()
+        .map(|&j| {
+            index
+                .nearest(&points[j])
+                .filter(|(_, d)| *d <= trim)
+                .map(|(i, _)| i)
+        })
+        .collect())
 }
 
 /// For each primitive, the indices of the points whose nearest primitive it is, within `trim`.
@@ -270,6 +474,9 @@ pub fn size_tangents(shape: &Shape, x: &Point3<f64>) -> Vec<Vector3<f64>> {
         Shape::Mesh(_) => Vec::new(),
     }
 }
+
+/// Assignment rounds when neighbours are re-refined in a merge trial.
+const MERGE_ROUNDS: usize = 3;
 
 /// Residuals below this (relative to the primitive's size) carry no direction and are skipped.
 const TINY: f64 = 1e-12;

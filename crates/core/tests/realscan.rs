@@ -9,6 +9,7 @@
 //! The clouds are dense enough that the truth itself meets the model→point bound (its
 //! samples are on average about σ from the nearest input point).
 
+use primfit_core::ShapeKind;
 use primfit_core::fit::{FitOptions, FitResult, fit};
 use primfit_core::frame::FrameChoice;
 use primfit_core::metrics::{Metrics, MetricsOptions, evaluate};
@@ -17,7 +18,6 @@ use primfit_core::refine::RefineOptions;
 use primfit_core::synth::{
     Density, HallwayParams, Misalignment, Noise, PipeParams, Scene, hallway, pipe,
 };
-use primfit_core::ShapeKind;
 
 /// Any rotation, and a shift of up to one lattice step.
 const ANYWHERE: Misalignment = Misalignment {

@@ -52,7 +52,7 @@ pub struct FitArgs {
     #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
     pub origin: Option<[f64; 3]>,
     /// Lattice frame: `auto` estimates the scan's dominant axes from local normals (PCA of
-    /// 16 nearest neighbours) and puts the grid on the data; `axis` uses the scene axes
+    /// 32 nearest neighbours) and puts the grid on the data; `axis` uses the scene axes
     /// and origin; a FILE is JSON `{"rotation": [w,x,y,z], "origin": [x,y,z]}` (origin
     /// optional) or an earlier result.json (its settings.frame and origin are reused).
     #[arg(long, default_value = "auto", value_name = "auto|axis|FILE")]
