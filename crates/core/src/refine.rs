@@ -50,7 +50,7 @@
 
 use std::time::Instant;
 
-use nalgebra::{DMatrix, DVector, Point3, UnitQuaternion, Vector3};
+use nalgebra::{DMatrix, DVector, Point3, SMatrix, SVector, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use crate::atlas::Shape;
@@ -207,6 +207,10 @@ pub fn refine(
     })
 }
 
+/// A model as `(index in the merge input, primitive)` pairs, and the region (point
+/// indices) whose owners a merge changed.
+type Alive = (Vec<(usize, Primitive)>, Vec<usize>);
+
 /// The merge pass of the module docs.
 struct Merger<'a> {
     ctx: &'a RefineContext<'a>,
@@ -238,10 +242,20 @@ impl Merger<'_> {
             let Some(pos) = alive.iter().position(|a| a.0 == id) else {
                 continue;
             };
-            if let Some(next) = self.try_remove(&alive, &owner, pos, &limits)? {
+            if let Some((next, region)) = self.try_remove(&alive, &owner, pos, &limits)? {
                 alive = next;
+                // Only the region's owners change (up to points of third primitives that
+                // a moved neighbour now passes closer to); the rest shift their index.
+                for o in owner.iter_mut().flatten() {
+                    if *o > pos {
+                        *o -= 1;
+                    }
+                }
                 let model: Vec<Primitive> = alive.iter().map(|a| a.1.clone()).collect();
-                owner = owners(self.ctx.points, &model, self.trim)?;
+                let fresh = owners_of(self.ctx.points, &region, &model, self.trim)?;
+                for (&j, o) in region.iter().zip(fresh) {
+                    owner[j] = o;
+                }
             }
         }
         Ok(alive.into_iter().map(|(k, p)| (p, k)).unzip())
@@ -255,7 +269,7 @@ impl Merger<'_> {
         owners: &[Option<usize>],
         pos: usize,
         limits: &[Vec<(f64, f64)>],
-    ) -> Result<Option<Vec<(usize, Primitive)>>> {
+    ) -> Result<Option<Alive>> {
         let model: Vec<Primitive> = alive.iter().map(|a| a.1.clone()).collect();
         let mine: Vec<usize> = (0..owners.len())
             .filter(|&j| owners[j] == Some(pos))
@@ -315,7 +329,7 @@ impl Merger<'_> {
         }
         let trial_model: Vec<Primitive> = trial.iter().map(|a| a.1.clone()).collect();
         let after = self.local_cost(&region, &trial_model, neighbours.iter().copied())?;
-        Ok((after <= before).then_some(trial))
+        Ok((after <= before).then_some((trial, region)))
     }
 
     /// `w_point Σ_{j ∈ region} min(d(y_j, model)², d_cap) + w_prim Σ_{i ∈ sampled} Σ_x d(x, D)²`.
@@ -489,23 +503,35 @@ struct Fitter<'a> {
 }
 
 /// Normal equations `A = Σ w JᵀJ`, `g = Σ w Jᵀr`, and the cost `F = Σ w r²`.
+/// Most parameters of one primitive: 3 rotation + 3 translation + 2 sizes.
+const MAX_PARAMS: usize = 8;
+
+/// A Jacobian row, zero-padded to [`MAX_PARAMS`] (kept on the stack).
+type Row = SVector<f64, MAX_PARAMS>;
+
 struct Normal {
-    a: DMatrix<f64>,
-    g: DVector<f64>,
+    /// `Σ w JᵀJ` (top-left `m × m` used).
+    a: SMatrix<f64, MAX_PARAMS, MAX_PARAMS>,
+    /// `Σ w Jᵀr` (first `m` used).
+    g: Row,
+    /// `Σ w r²`.
     cost: f64,
+    /// Parameters in use.
+    m: usize,
 }
 
 impl Normal {
     fn new(m: usize) -> Self {
         Normal {
-            a: DMatrix::zeros(m, m),
-            g: DVector::zeros(m),
+            a: SMatrix::zeros(),
+            g: Row::zeros(),
             cost: 0.0,
+            m,
         }
     }
-    fn add(&mut self, w: f64, r: f64, row: &DVector<f64>) {
-        self.a += w * row * row.transpose();
-        self.g += w * r * row;
+    fn add(&mut self, w: f64, r: f64, row: &Row) {
+        self.a += (w * row) * row.transpose();
+        self.g += (w * r) * row;
         self.cost += w * r * r;
     }
 }
@@ -525,19 +551,13 @@ impl<'a> Fitter<'a> {
 
     /// The Jacobian row of a residual with direction `dir` (`∂r/∂x = dir`) at scene
     /// point `x` whose local point is `local`.
-    fn row(
-        &self,
-        p: &Primitive,
-        x: &Point3<f64>,
-        local: &Point3<f64>,
-        dir: &Vector3<f64>,
-    ) -> DVector<f64> {
+    fn row(&self, p: &Primitive, x: &Point3<f64>, local: &Point3<f64>, dir: &Vector3<f64>) -> Row {
         let tangents = size_tangents(&p.shape, local);
-        let mut row = DVector::zeros(6 + tangents.len());
+        let mut row = Row::zeros();
         let lever = x.coords - p.pose.translation;
         row.fixed_rows_mut::<3>(0).copy_from(&lever.cross(dir));
         row.fixed_rows_mut::<3>(3).copy_from(dir);
-        for (k, t) in tangents.iter().enumerate() {
+        for (k, t) in tangents.iter().enumerate().take(MAX_PARAMS - 6) {
             row[6 + k] = dir.dot(&(p.pose.rotation * t * p.pose.scale));
         }
         row
@@ -645,13 +665,14 @@ impl<'a> Fitter<'a> {
 
     /// The damped Gauss–Newton step, or `None` if the system cannot be solved.
     fn step(&self, n: &Normal, lambda: f64) -> Option<DVector<f64>> {
-        let m = n.g.len();
-        let eps = 1e-9 * (n.a.trace() / m as f64).max(f64::MIN_POSITIVE);
-        let mut a = n.a.clone();
+        let m = n.m;
+        let mut a: DMatrix<f64> = n.a.view((0, 0), (m, m)).clone_owned();
+        let eps = 1e-9 * (a.trace() / m as f64).max(f64::MIN_POSITIVE);
         for i in 0..m {
-            a[(i, i)] += lambda * (n.a[(i, i)] + eps) + eps;
+            a[(i, i)] += lambda * (a[(i, i)] + eps) + eps;
         }
-        let delta = a.cholesky()?.solve(&(-&n.g));
+        let g: DVector<f64> = n.g.rows(0, m).clone_owned();
+        let delta = a.cholesky()?.solve(&(-g));
         delta.iter().all(|v| v.is_finite()).then_some(delta)
     }
 }
