@@ -8,12 +8,18 @@
 
 mod common;
 
-use common::{fit_both, header, pipe_options, pipe_scene, row, trials};
+use common::{fit_both, header, measure, pipe_options, pipe_scene, row, trials, truth_row};
 use primfit::chamfer::PointModel;
 
 fn main() {
     let n = trials();
     println!("{}", header("α"));
+    let truth: Vec<_> = (0..n)
+        .map(|seed| {
+            let scene = pipe_scene(1000 + seed);
+            measure(&scene, &scene.truth, 0.0)
+        })
+        .collect();
     for alpha in [1usize, 2, 5, 10, 20] {
         let mut options = pipe_options(0.5);
         options.model = PointModel::Independent;
@@ -27,4 +33,5 @@ fn main() {
         }
         println!("{}", row(&alpha.to_string(), &plain, &refined));
     }
+    println!("{}", truth_row(&truth));
 }

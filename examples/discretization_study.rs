@@ -8,12 +8,18 @@
 
 mod common;
 
-use common::{fit_both, header, pipe_options, pipe_scene, row, trials};
+use common::{fit_both, header, measure, pipe_options, pipe_scene, row, trials, truth_row};
 
 fn main() {
     let n = trials();
     let base = 0.5;
     println!("{}", header("level i (spacing)"));
+    let truth: Vec<_> = (0..n)
+        .map(|seed| {
+            let scene = pipe_scene(1000 + seed);
+            measure(&scene, &scene.truth, 0.0)
+        })
+        .collect();
     for i in -2i32..=2 {
         let spacing = base * 2f64.powi(i);
         let options = pipe_options(spacing);
@@ -26,4 +32,5 @@ fn main() {
         }
         println!("{}", row(&format!("{i} ({spacing})"), &plain, &refined));
     }
+    println!("{}", truth_row(&truth));
 }

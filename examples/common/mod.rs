@@ -8,8 +8,7 @@ use primfit::ShapeKind;
 use primfit::fit::{FitOptions, fit};
 use primfit::metrics::{MetricsOptions, evaluate};
 use primfit::progress::Silent;
-use primfit::refine::{RefineContext, RefineOptions, refine};
-use primfit::spatial::PointIndex;
+use primfit::refine::RefineOptions;
 use primfit::synth::{Density, Misalignment, Noise, PipeParams, Scene, pipe};
 
 /// Error and time of one fit.
@@ -58,33 +57,31 @@ pub fn pipe_options(spacing: f64) -> FitOptions {
     }
 }
 
-/// Fits `scene` with `options` (no refinement), then refines that result: returns the
-/// plain outcome and the refined one (its time includes the plain fit's).
+/// The DESIGN §4 measures of `prims` against `scene`'s cloud, with `seconds`.
+pub fn measure(scene: &Scene, prims: &[primfit::Primitive], seconds: f64) -> Outcome {
+    let m =
+        evaluate(&scene.cloud.points, prims, None, &MetricsOptions::default()).expect("metrics");
+    Outcome {
+        chamfer: m.chamfer,
+        point_to_model: m.point_to_model_mean,
+        seconds,
+    }
+}
+
+/// Fits `scene` with `options` as given (no refinement) and again with refinement
+/// ([`RefineOptions::default`]: refinement, merging, coarse-to-fine gap filling):
+/// returns both outcomes.
 pub fn fit_both(scene: &Scene, options: &FitOptions) -> (Outcome, Outcome) {
-    let t0 = Instant::now();
-    let r = fit(&scene.cloud, options, &Silent).expect("fit");
-    let plain_seconds = t0.elapsed().as_secs_f64();
-    let index = PointIndex::new(&scene.cloud.points);
-    let ctx = RefineContext {
-        points: &scene.cloud.points,
-        index: &index,
-        sample_spacing: r.settings.sample_spacing,
-        chamfer: &r.settings.chamfer,
+    let run = |o: &FitOptions| {
+        let t0 = Instant::now();
+        let r = fit(&scene.cloud, o, &Silent).expect("fit");
+        measure(scene, &r.primitives, t0.elapsed().as_secs_f64())
     };
-    let refined = refine(&ctx, &r.primitives, &RefineOptions::default()).expect("refine");
-    let measure = |prims: &[primfit::Primitive], seconds: f64| {
-        let m = evaluate(&scene.cloud.points, prims, None, &MetricsOptions::default())
-            .expect("metrics");
-        Outcome {
-            chamfer: m.chamfer,
-            point_to_model: m.point_to_model_mean,
-            seconds,
-        }
+    let refined = FitOptions {
+        refine: Some(RefineOptions::default()),
+        ..options.clone()
     };
-    (
-        measure(&r.primitives, plain_seconds),
-        measure(&refined.primitives, plain_seconds + refined.seconds),
-    )
+    (run(options), run(&refined))
 }
 
 /// `mean ± std` of `values` (population standard deviation), `precision` decimals.
@@ -115,6 +112,14 @@ pub fn row(label: &str, plain: &[Outcome], refined: &[Outcome]) -> String {
         mean_std(&pick(plain, |o| o.seconds), 2),
         mean_std(&pick(refined, |o| o.seconds), 2),
     )
+}
+
+/// A last row with the measures of the true primitives (no time).
+pub fn truth_row(truth: &[Outcome]) -> String {
+    let pick = |f: fn(&Outcome) -> f64| truth.iter().map(f).collect::<Vec<f64>>();
+    let c = mean_std(&pick(|o| o.chamfer), 2);
+    let p = mean_std(&pick(|o| o.point_to_model), 4);
+    format!("| truth | {c} | {c} | {p} | {p} | – | – |")
 }
 
 /// The table header matching [`row`].

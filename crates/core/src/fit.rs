@@ -27,6 +27,7 @@ use crate::atlas::{MeshShape, Shape, ShapeKind, TriMesh};
 use crate::chamfer::{ChamferOptions, Coefficients, Evaluator, LossValue, PointModel};
 use crate::frame::{FrameChoice, FrameEstimate, estimate_frame, grid_origin, realign};
 use crate::lattice::{CandidateSet, LatticeSpec};
+use crate::metrics::point_to_model_distances;
 use crate::progress::{Progress, Silent};
 use crate::refine::{RefineContext, RefineOptions, Refined, refine};
 use crate::solve::{Solution, SolverOptions, solve};
@@ -319,7 +320,7 @@ impl Settings {
         .to_json(self.frame_source);
         let refine = self.refine.as_ref().map(|r| {
             json!({ "rounds": r.rounds, "iterations": r.iterations, "trim": r.trim.unwrap_or(self.cap),
-                    "max_growth": r.max_growth, "recheck": r.recheck })
+                    "max_growth": r.max_growth, "recheck": r.recheck, "merge": r.merge, "fill": r.fill })
         });
         json!({
             "types": self.kinds.iter().map(|k| k.name()).collect::<Vec<_>>(),
@@ -374,6 +375,8 @@ pub struct FitStats {
     pub refine_dropped: usize,
     /// Lattice passes run (2 when the lattice was re-aligned to a first refined fit).
     pub passes: usize,
+    /// Primitives proposed by the coarse-to-fine gap filling (before merging).
+    pub filled: usize,
 }
 
 /// The result of [`fit`].
@@ -491,7 +494,12 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     let index = PointIndex::new(&cloud.points);
     let settings = Settings::resolve(cloud, &index, options)?;
     progress.message(&format!("settings: {}", settings.to_json()));
-    let first = fit_pass(cloud, &index, settings, progress)?;
+    let first = fill_gaps(
+        cloud,
+        &index,
+        fit_pass(cloud, &index, settings, progress)?,
+        progress,
+    )?;
     let realign_pass = first.settings.refine.is_some()
         && first.settings.frame_source == "auto"
         && !first.primitives.is_empty();
@@ -510,7 +518,12 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         "re-aligned lattice: frame {:?}, origin {origin:?}",
         frame.quaternion().coords
     ));
-    let second = fit_pass(cloud, &index, settings, progress)?;
+    let second = fill_gaps(
+        cloud,
+        &index,
+        fit_pass(cloud, &index, settings, progress)?,
+        progress,
+    )?;
     let loss = |r: &FitResult| binary_chamfer(cloud, &r.primitives, &r.settings).map(|l| l.total);
     let (a, b) = (loss(&first)?, loss(&second)?);
     progress.message(&format!(
@@ -519,6 +532,77 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     let mut best = if b <= a { second } else { first };
     best.stats.passes = 2;
     Ok(best)
+}
+
+/// Coarse to fine: when a refined fit leaves points unexplained (farther than
+/// `max(4σ, 2 × point spacing)` from every primitive, at least 1 % of the points and 20
+/// of them), fits a lattice of half the spacing to those points alone, adds what it
+/// finds to the model and refines the union (with merging) on the whole cloud. The
+/// result is kept only if its binary chamfer is lower. Returns `result` unchanged
+/// without refinement.
+fn fill_gaps(
+    cloud: &PointCloud,
+    index: &PointIndex,
+    result: FitResult,
+    progress: &dyn Progress,
+) -> Result<FitResult> {
+    let Some(options) = result.settings.refine.clone() else {
+        return Ok(result);
+    };
+    if !options.fill || result.primitives.is_empty() {
+        return Ok(result);
+    }
+    let s = &result.settings;
+    let threshold = (4.0 * s.noise).max(2.0 * s.point_spacing);
+    let distances = point_to_model_distances(&cloud.points, &result.primitives)?;
+    let residual: Vec<Point3<f64>> = cloud
+        .points
+        .iter()
+        .zip(&distances)
+        .filter(|(_, d)| **d > threshold)
+        .map(|(p, _)| *p)
+        .collect();
+    if residual.len() < 20 || residual.len() * 100 < cloud.len() {
+        return Ok(result);
+    }
+    let mut fine = s.clone();
+    fine.spacing = s.spacing / 2.0;
+    fine.refine = None;
+    let sub = PointCloud::from_points(residual);
+    let sub_index = PointIndex::new(&sub.points);
+    let Ok(extra) = fit_pass(&sub, &sub_index, fine, progress) else {
+        return Ok(result);
+    };
+    if extra.primitives.is_empty() {
+        return Ok(result);
+    }
+    let mut union = result.primitives.clone();
+    union.extend(extra.primitives.iter().cloned());
+    let mut existence = result.existence.clone();
+    existence.extend(extra.existence.iter().copied());
+    let ctx = RefineContext {
+        points: &cloud.points,
+        index,
+        sample_spacing: s.sample_spacing,
+        chamfer: &s.chamfer,
+    };
+    let refined = refine(&ctx, &union, &options)?;
+    let before = binary_chamfer(cloud, &result.primitives, s)?.total;
+    progress.message(&format!(
+        "coarse to fine: {} unexplained points, {} primitives added, binary chamfer {before:.6} → {:.6}",
+        sub.len(),
+        extra.primitives.len(),
+        refined.loss_after
+    ));
+    if refined.loss_after >= before {
+        return Ok(result);
+    }
+    let mut out = result;
+    out.existence = refined.source.iter().map(|&i| existence[i]).collect();
+    out.primitives = refined.primitives;
+    out.stats.refine_seconds += refined.seconds + extra.stats.solve_seconds;
+    out.stats.filled += extra.primitives.len();
+    Ok(out)
 }
 
 /// One lattice fit under `settings`, refined when `settings.refine` is set.
@@ -612,6 +696,7 @@ fn fit_pass(
         refine_seconds: refined.as_ref().map_or(0.0, |r| r.seconds),
         refine_dropped: refined.as_ref().map_or(0, |r| r.dropped),
         passes: 1,
+        filled: 0,
     };
     Ok(FitResult {
         settings,

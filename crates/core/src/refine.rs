@@ -78,6 +78,9 @@ pub struct RefineOptions {
     pub recheck: bool,
     /// Try to merge each primitive into its neighbours (see the module docs).
     pub merge: bool,
+    /// Coarse to fine: fit a finer lattice where refined primitives leave points
+    /// unexplained (done by [`crate::fit::fit`], see there).
+    pub fill: bool,
 }
 
 impl Default for RefineOptions {
@@ -89,6 +92,7 @@ impl Default for RefineOptions {
             max_growth: 2.0,
             recheck: true,
             merge: true,
+            fill: true,
         }
     }
 }
