@@ -9,11 +9,14 @@
 //! | `spacing` | `size / 2` (the thesis's hallway: 1 m squares on a 0.5 m lattice); when `mesh` is the only type, the mesh's bounding radius (as in the registration scenes) |
 //! | `radius` | `size / 10` (tube radius of cylinders and elbows) |
 //! | `bend` | `spacing` (elbow centre-line radius) |
-//! | `cap` | `spacing`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; `d_cap = cap²` |
+//! | `cap` | `max(spacing, 5σ)`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; on very noisy scans (noise σ, see below) a point within 5σ of a surface still counts as explained. `d_cap = cap²` |
+//! | noise σ | the median off-plane spread of the flattest half of the k = 32 nearest-neighbour neighbourhoods ([`crate::surface::noise_level`]) |
 //! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
 //! | `beta` | 32 candidates per point (24 was the least that recovered every synthetic pipe) |
 //! | `alpha` | 10 samples per candidate (thesis §6.3), `independent` model only |
-//! | lattice origin | the scene origin; frame: the scene axes |
+//! | frame | [`FrameChoice::Axis`] (the scene axes) in the library; the CLI defaults to `auto`: the scan's dominant axes ([`crate::frame::estimate_frame`]) |
+//! | lattice origin | `axis`: the scene origin; `auto` and a given frame without origin: grid planes on the data ([`crate::frame::grid_origin`]) |
+//! | refinement | off in the library (`FitOptions::refine = None`); the CLI turns it on ([`RefineOptions::default`]) |
 
 use std::time::Instant;
 
@@ -22,10 +25,14 @@ use serde_json::{Value, json};
 
 use crate::atlas::{MeshShape, Shape, ShapeKind, TriMesh};
 use crate::chamfer::{ChamferOptions, Coefficients, Evaluator, LossValue, PointModel};
+use crate::frame::{FrameChoice, FrameEstimate, estimate_frame, grid_origin, realign};
 use crate::lattice::{CandidateSet, LatticeSpec};
+use crate::metrics::point_to_model_distances;
 use crate::progress::{Progress, Silent};
+use crate::refine::{RefineContext, RefineOptions, Refined, refine};
 use crate::solve::{Solution, SolverOptions, solve};
 use crate::spatial::{PointIndex, median_spacing};
+use crate::surface::{DEFAULT_MAX_POINTS, DEFAULT_NEIGHBOURS, local_planes, noise_level};
 use crate::{Error, PointCloud, Primitive, Result};
 
 /// User-facing options of [`fit`]; `None` means "derive from the cloud".
@@ -43,6 +50,10 @@ pub struct FitOptions {
     pub spacing: Option<f64>,
     /// A lattice point.
     pub origin: Option<Point3<f64>>,
+    /// How the lattice frame is chosen (default: the scene axes).
+    pub frame: FrameChoice,
+    /// Continuous refinement after the existence decision (default: none).
+    pub refine: Option<RefineOptions>,
     /// Spacing of candidate surface samples.
     pub sample_spacing: Option<f64>,
     /// Point-term model.
@@ -103,6 +114,16 @@ pub struct Settings {
     pub spacing: f64,
     /// See [`FitOptions::origin`].
     pub origin: Point3<f64>,
+    /// Lattice frame → scene.
+    pub frame: UnitQuaternion<f64>,
+    /// How the frame was chosen: `axis`, `auto` or `given`.
+    pub frame_source: &'static str,
+    /// Share of flat normals within ≈ 14° of a frame axis (estimated frames only).
+    pub frame_support: Option<f64>,
+    /// The cloud's estimated noise σ (scene units; see the module docs), 0 if unknown.
+    pub noise: f64,
+    /// Refinement options, if refinement runs.
+    pub refine: Option<RefineOptions>,
     /// See [`FitOptions::sample_spacing`].
     pub sample_spacing: f64,
     /// The cloud's median nearest-neighbour distance.
@@ -185,6 +206,8 @@ impl Settings {
             ));
         }
         let point_spacing = median_spacing(&cloud.points, index, 2000).unwrap_or(diagonal / 100.0);
+        let planes = local_planes(&cloud.points, index, DEFAULT_NEIGHBOURS, DEFAULT_MAX_POINTS);
+        let noise = noise_level(&planes).unwrap_or(0.0);
         let kinds = if o.kinds.is_empty() {
             vec![ShapeKind::Square]
         } else {
@@ -198,7 +221,7 @@ impl Settings {
         let spacing = positive("spacing", o.spacing.unwrap_or(default_spacing))?;
         let radius = positive("radius", o.radius.unwrap_or(size / 10.0))?;
         let bend = positive("bend", o.bend.unwrap_or(spacing))?;
-        let cap = o.cap.unwrap_or(spacing);
+        let cap = o.cap.unwrap_or(spacing.max(5.0 * noise));
         if !(cap.is_finite() && cap >= 0.0) {
             return Err(Error::invalid(format!(
                 "--cap must be a finite distance ≥ 0, got {cap}"
@@ -234,13 +257,40 @@ impl Settings {
             point_weight: o.point_weight.unwrap_or(1.0),
         };
         chamfer.validate()?;
+        if let Some(r) = &o.refine {
+            r.validate()?;
+        }
+        let (frame, frame_support) = match &o.frame {
+            FrameChoice::Axis => (UnitQuaternion::identity(), None),
+            FrameChoice::Given { rotation, .. } => (*rotation, None),
+            FrameChoice::Auto => match estimate_frame(&planes, o.seed) {
+                Some(FrameEstimate { rotation, support }) => (rotation, Some(support)),
+                None => (UnitQuaternion::identity(), None),
+            },
+        };
+        let given_origin = match &o.frame {
+            FrameChoice::Given {
+                origin: Some(p), ..
+            } => Some(*p),
+            _ => o.origin,
+        };
+        let origin = match (given_origin, &o.frame) {
+            (Some(p), _) => p,
+            (None, FrameChoice::Axis) => Point3::origin(),
+            (None, _) => grid_origin(&planes, &cloud.points, &frame, spacing, size),
+        };
         Ok(Settings {
             kinds,
             size,
             radius,
             bend,
             spacing,
-            origin: o.origin.unwrap_or_else(Point3::origin),
+            origin,
+            frame,
+            frame_source: o.frame.name(),
+            frame_support,
+            noise,
+            refine: o.refine.clone(),
             sample_spacing,
             point_spacing,
             cap,
@@ -287,7 +337,7 @@ impl Settings {
             shapes: self.shapes(),
             spacing: self.spacing,
             origin: self.origin,
-            frame: UnitQuaternion::identity(),
+            frame: self.frame,
             sample_spacing: self.sample_spacing,
         }
     }
@@ -295,6 +345,15 @@ impl Settings {
     /// Every setting as JSON (`result.json`'s `"settings"`).
     pub fn to_json(&self) -> Value {
         let lim = |v: Option<usize>| v.map_or(Value::from("inf"), Value::from);
+        let frame = FrameEstimate {
+            rotation: self.frame,
+            support: self.frame_support.unwrap_or(f64::NAN),
+        }
+        .to_json(self.frame_source);
+        let refine = self.refine.as_ref().map(|r| {
+            json!({ "rounds": r.rounds, "iterations": r.iterations, "trim": r.trim.unwrap_or(self.cap),
+                    "max_growth": r.max_growth, "recheck": r.recheck, "merge": r.merge, "fill": r.fill })
+        });
         let mut doc = json!({
             "types": self.kinds.iter().map(|k| k.name()).collect::<Vec<_>>(),
             "size": self.size,
@@ -302,6 +361,9 @@ impl Settings {
             "bend": self.bend,
             "spacing": self.spacing,
             "origin": [self.origin.x, self.origin.y, self.origin.z],
+            "frame": frame,
+            "noise": self.noise,
+            "refine": refine,
             "sample_spacing": self.sample_spacing,
             "point_spacing": self.point_spacing,
             "model": self.chamfer.model.name(),
@@ -361,6 +423,14 @@ pub struct FitStats {
     pub coefficient_seconds: f64,
     /// Seconds spent in L-BFGS, thresholding and polish.
     pub solve_seconds: f64,
+    /// Seconds spent refining (0 without refinement).
+    pub refine_seconds: f64,
+    /// Primitives the post-refinement existence check removed.
+    pub refine_dropped: usize,
+    /// Lattice passes run (2 when the lattice was re-aligned to a first refined fit).
+    pub passes: usize,
+    /// Primitives proposed by the coarse-to-fine gap filling (before merging).
+    pub filled: usize,
 }
 
 /// The result of [`fit`].
@@ -494,7 +564,11 @@ pub fn binary_chamfer(
     Ok(Evaluator::new(&coeffs).binary_value(&vec![true; set.len()]))
 }
 
-/// Fits primitives to `cloud`.
+/// Fits primitives to `cloud`: a lattice pass (candidates, coefficients, L-BFGS, polish),
+/// then, with [`FitOptions::refine`], continuous refinement ([`crate::refine`]). With an
+/// estimated frame (`auto`) and refinement, the lattice is then re-aligned to the refined
+/// primitives ([`crate::frame::realign`]: their axes and the grid phase of their centres)
+/// and fitted and refined once more; the pass with the lower binary chamfer is kept.
 pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) -> Result<FitResult> {
     if cloud.is_empty() {
         return Err(Error::invalid("the cloud is empty"));
@@ -509,7 +583,124 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     let index = PointIndex::new(&cloud.points);
     let settings = Settings::resolve(cloud, &index, options)?;
     progress.message(&format!("settings: {}", settings.to_json()));
+    let first = fill_gaps(
+        cloud,
+        &index,
+        fit_pass(cloud, &index, settings, progress)?,
+        progress,
+    )?;
+    let realign_pass = first.settings.refine.is_some()
+        && first.settings.frame_source == "auto"
+        && !first.primitives.is_empty();
+    if !realign_pass {
+        return Ok(first);
+    }
+    let (frame, origin) = realign(
+        &first.primitives,
+        &first.settings.frame,
+        first.settings.spacing,
+    );
+    let mut settings = first.settings.clone();
+    settings.frame = frame;
+    settings.origin = origin;
+    progress.message(&format!(
+        "re-aligned lattice: frame {:?}, origin {origin:?}",
+        frame.quaternion().coords
+    ));
+    let second = fill_gaps(
+        cloud,
+        &index,
+        fit_pass(cloud, &index, settings, progress)?,
+        progress,
+    )?;
+    let loss = |r: &FitResult| binary_chamfer(cloud, &r.primitives, &r.settings).map(|l| l.total);
+    let (a, b) = (loss(&first)?, loss(&second)?);
+    progress.message(&format!(
+        "binary chamfer: first pass {a:.6}, re-aligned pass {b:.6}"
+    ));
+    let mut best = if b <= a { second } else { first };
+    best.stats.passes = 2;
+    Ok(best)
+}
 
+/// Coarse to fine: when a refined fit leaves points unexplained (farther than
+/// `max(4σ, 2 × point spacing)` from every primitive, at least 1 % of the points and 20
+/// of them), fits a lattice of half the spacing to those points alone, adds what it
+/// finds to the model and refines the union (with merging) on the whole cloud. The
+/// result is kept only if its binary chamfer is lower. Returns `result` unchanged
+/// without refinement.
+fn fill_gaps(
+    cloud: &PointCloud,
+    index: &PointIndex,
+    result: FitResult,
+    progress: &dyn Progress,
+) -> Result<FitResult> {
+    let Some(options) = result.settings.refine.clone() else {
+        return Ok(result);
+    };
+    if !options.fill || result.primitives.is_empty() {
+        return Ok(result);
+    }
+    let s = &result.settings;
+    let threshold = (4.0 * s.noise).max(2.0 * s.point_spacing);
+    let distances = point_to_model_distances(&cloud.points, &result.primitives)?;
+    let residual: Vec<Point3<f64>> = cloud
+        .points
+        .iter()
+        .zip(&distances)
+        .filter(|(_, d)| **d > threshold)
+        .map(|(p, _)| *p)
+        .collect();
+    if residual.len() < 20 || residual.len() * 100 < cloud.len() {
+        return Ok(result);
+    }
+    let mut fine = s.clone();
+    fine.spacing = s.spacing / 2.0;
+    fine.refine = None;
+    let sub = PointCloud::from_points(residual);
+    let sub_index = PointIndex::new(&sub.points);
+    let Ok(extra) = fit_pass(&sub, &sub_index, fine, progress) else {
+        return Ok(result);
+    };
+    if extra.primitives.is_empty() {
+        return Ok(result);
+    }
+    let mut union = result.primitives.clone();
+    union.extend(extra.primitives.iter().cloned());
+    let mut existence = result.existence.clone();
+    existence.extend(extra.existence.iter().copied());
+    let ctx = RefineContext {
+        points: &cloud.points,
+        index,
+        sample_spacing: s.sample_spacing,
+        chamfer: &s.chamfer,
+    };
+    let refined = refine(&ctx, &union, &options)?;
+    let before = binary_chamfer(cloud, &result.primitives, s)?.total;
+    progress.message(&format!(
+        "coarse to fine: {} unexplained points, {} primitives added, binary chamfer {before:.6} → {:.6}",
+        sub.len(),
+        extra.primitives.len(),
+        refined.loss_after
+    ));
+    if refined.loss_after >= before {
+        return Ok(result);
+    }
+    let mut out = result;
+    out.existence = refined.source.iter().map(|&i| existence[i]).collect();
+    out.primitives = refined.primitives;
+    out.stats.refine_seconds += refined.seconds + extra.stats.solve_seconds;
+    out.stats.filled += extra.primitives.len();
+    Ok(out)
+}
+
+/// One lattice fit under `settings`, refined when `settings.refine` is set.
+fn fit_pass(
+    cloud: &PointCloud,
+    index: &PointIndex,
+    settings: Settings,
+    progress: &dyn Progress,
+) -> Result<FitResult> {
     let t0 = Instant::now();
     let mut candidates = CandidateSet::build(&settings.lattice(), cloud)?;
     // Exact in effect: a candidate with no point within the cap of its surface can only
@@ -575,8 +766,25 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     let chosen: Vec<usize> = (0..candidates.len())
         .filter(|&i| solution.exists[i])
         .collect();
-    let primitives = chosen.iter().map(|&i| candidates.primitive(i)).collect();
-    let existence = chosen.iter().map(|&i| solution.probability[i]).collect();
+    let mut primitives: Vec<Primitive> = chosen.iter().map(|&i| candidates.primitive(i)).collect();
+    let mut existence: Vec<f64> = chosen.iter().map(|&i| solution.probability[i]).collect();
+    let mut refined = None;
+    if let Some(options) = &settings.refine {
+        let ctx = RefineContext {
+            points: &cloud.points,
+            index,
+            sample_spacing: settings.sample_spacing,
+            chamfer: &settings.chamfer,
+        };
+        let r: Refined = refine(&ctx, &primitives, options)?;
+        progress.message(&format!(
+            "refinement: binary chamfer {:.6} → {:.6}, {} primitives dropped, {:.2} s",
+            r.loss_before, r.loss_after, r.dropped, r.seconds
+        ));
+        existence = r.source.iter().map(|&i| existence[i]).collect();
+        primitives = r.primitives.clone();
+        refined = Some(r);
+    }
     let stats = FitStats {
         points: cloud.len(),
         candidates: candidates.len(),
@@ -587,6 +795,10 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         lattice_seconds,
         coefficient_seconds,
         solve_seconds,
+        refine_seconds: refined.as_ref().map_or(0.0, |r| r.seconds),
+        refine_dropped: refined.as_ref().map_or(0, |r| r.dropped),
+        passes: 1,
+        filled: 0,
     };
     Ok(FitResult {
         settings,

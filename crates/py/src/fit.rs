@@ -87,6 +87,7 @@ impl PyFitOptions {
             },
             memory_budget,
             seed,
+            ..Default::default()
         }))
     }
 }

@@ -7,9 +7,11 @@ use clap::Args;
 use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::chamfer::PointModel;
 use primfit_core::fit::{FitOptions, fit};
+use primfit_core::frame::FrameChoice;
 use primfit_core::io::{self, Encoding};
 use primfit_core::na::Point3;
 use primfit_core::ray::{McmcFitOptions, fit_mcmc};
+use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
 
 use super::{Output, check_output, parse_limit, parse_pair, parse_point};
@@ -46,9 +48,23 @@ pub struct FitArgs {
     /// Lattice translation step [default: size / 2].
     #[arg(long)]
     pub spacing: Option<f64>,
-    /// A lattice point, `x,y,z` [default: 0,0,0].
+    /// A lattice point, `x,y,z` [default: with `--frame axis` 0,0,0; otherwise chosen so
+    /// that grid planes lie on the scan's main planes].
     #[arg(long, value_parser = parse_point, allow_hyphen_values = true)]
     pub origin: Option<[f64; 3]>,
+    /// Lattice frame: `auto` estimates the scan's dominant axes from local normals (PCA of
+    /// 32 nearest neighbours) and puts the grid on the data; `axis` uses the scene axes
+    /// and origin; a FILE is JSON `{"rotation": [w,x,y,z], "origin": [x,y,z]}` (origin
+    /// optional) or an earlier result.json (its settings.frame and origin are reused).
+    #[arg(long, default_value = "auto", value_name = "auto|axis|FILE")]
+    pub frame: String,
+    /// Skip the continuous refinement of the chosen primitives' poses and sizes (and the
+    /// existence re-check after it).
+    #[arg(long)]
+    pub no_refine: bool,
+    /// Refinement rounds (point assignment + Levenberg–Marquardt per primitive).
+    #[arg(long, default_value_t = RefineOptions::default().rounds)]
+    pub refine_rounds: usize,
     /// Spacing of candidate surface samples [default: min(size/16, 2π·radius/12), at least
     /// the cloud's median point spacing].
     #[arg(long)]
@@ -62,7 +78,8 @@ pub struct FitArgs {
     /// β: candidates per point [default: 32; `inf` = all].
     #[arg(long, value_parser = parse_limit)]
     pub beta: Option<usize>,
-    /// Distance whose square is the cost of an unexplained point [default: spacing].
+    /// Distance whose square is the cost of an unexplained point [default: max(spacing,
+    /// 5σ) with σ the scan's noise level, estimated from local plane fits].
     #[arg(long)]
     pub cap: Option<f64>,
     /// Weights of the primitive and point terms, `a,b` [default: 1,1].
@@ -129,8 +146,24 @@ impl FitArgs {
             Some([a, b]) => (Some(a), Some(b)),
             None => (None, None),
         };
+        let frame = match self.frame.as_str() {
+            "auto" | "axis" => FrameChoice::parse(&self.frame)?,
+            file => {
+                let text = std::fs::read_to_string(file)
+                    .with_context(|| format!("reading --frame {file}"))?;
+                let value: serde_json::Value = serde_json::from_str(&text)
+                    .with_context(|| format!("parsing --frame {file} as JSON"))?;
+                FrameChoice::from_json(&value).with_context(|| format!("--frame {file}"))?
+            }
+        };
+        let refine = (!self.no_refine).then(|| RefineOptions {
+            rounds: self.refine_rounds,
+            ..Default::default()
+        });
         Ok(FitOptions {
             kinds,
+            frame,
+            refine,
             size: self.size,
             radius: self.radius,
             bend: self.bend,
@@ -285,7 +318,7 @@ fn print_summary(
     } else if verbose {
         let s = &r.stats;
         println!(
-            "{} entries × {} B = {:.1} MiB; lattice {:.2} s, coefficients {:.2} s, solve {:.2} s ({} iterations, {} evaluations, {} polish flips)",
+            "{} entries × {} B = {:.1} MiB; lattice {:.2} s, coefficients {:.2} s, solve {:.2} s ({} iterations, {} evaluations, {} polish flips), refine {:.2} s ({} dropped)",
             s.entries,
             s.bytes_per_entry,
             s.coefficient_bytes as f64 / (1 << 20) as f64,
@@ -294,7 +327,28 @@ fn print_summary(
             s.solve_seconds,
             r.solution.iterations,
             r.solution.evaluations,
-            r.solution.flips
+            r.solution.flips,
+            s.refine_seconds,
+            s.refine_dropped
+        );
+        let st = &r.settings;
+        let q = st.frame.quaternion();
+        println!(
+            "frame {} [w x y z] = [{:.4} {:.4} {:.4} {:.4}] (support {}), origin [{:.4} {:.4} {:.4}], noise σ {:.4}, size {}, spacing {}, cap {:.4}",
+            st.frame_source,
+            q.w,
+            q.i,
+            q.j,
+            q.k,
+            st.frame_support
+                .map_or("n/a".to_string(), |s| format!("{:.0} %", 100.0 * s)),
+            st.origin.x,
+            st.origin.y,
+            st.origin.z,
+            st.noise,
+            st.size,
+            st.spacing,
+            st.cap
         );
     }
     for (flag, path) in [("result", &args.output), ("mesh", &args.mesh)] {

@@ -127,6 +127,7 @@ pub fn fit_mcmc(
         lattice_seconds,
         coefficient_seconds: table_seconds,
         solve_seconds,
+        ..Default::default()
     };
     let solution = Solution {
         probability: run.frequency.clone(),

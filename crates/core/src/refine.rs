@@ -1,0 +1,820 @@
+//! Continuous refinement of chosen primitives: pose and sizes by damped Gauss–Newton
+//! (Levenberg–Marquardt) on the chamfer, then a new existence check.
+//!
+//! After the lattice fit has decided which candidates exist, each primitive `P` is moved
+//! off the lattice to lower its share of the binary chamfer
+//!
+//! `F(P) = w_point Σ_{y ∈ A(P)} d(y, P)² + w_prim Σ_{x ∈ σ(P)} d(x, D)²`,
+//!
+//! where `A(P)` are the input points whose nearest fitted surface is `P` and lies within
+//! the trim distance (the assignment is redone every round; farther points are outliers
+//! and pull nothing), `σ(P)` are `P`'s surface samples at the fitter's sample spacing, and
+//! `D` is the whole cloud. The second term is what stops a patch from growing past the
+//! data. Units: `F` is in scene units².
+//!
+//! **Parameters.** A small rotation `ω` (applied on the left, about `P`'s origin), a
+//! translation `τ`, and `η_k = ln s_k` for each size `s_k` (so sizes stay positive), each
+//! size kept within a factor [`RefineOptions::max_growth`] of its start. Types never
+//! change; an elbow keeps `radius < bend`; meshes refine their pose only.
+//!
+//! **Jacobians in closed form**, from the exact closest point `c` ([`Primitive::closest_point`]):
+//! for a point residual `r = |y − c|` with `n = (y − c)/r`, the envelope theorem gives
+//! `∂r/∂θ = −n · ∂x/∂θ`, where `x` is the surface point carried along with the parameters:
+//! `∂x/∂ω = −[x − t]ₓ` (so `∂r/∂ω = −(x − t) × n`), `∂x/∂τ = I`, and `∂x/∂η_k` from the
+//! shape's size derivative at fixed normalised surface coordinates (square, disk, sphere:
+//! the local point itself; cylinder: its axial component for the length and its radial
+//! one for the radius; elbow: the centre-line point for the bend, the tube offset for the
+//! radius), rotated into the scene. A sample residual `r = |x − q|` (with `q` its nearest
+//! cloud point) has `∂r/∂θ = m · ∂x/∂θ`, `m = (x − q)/r`.
+//!
+//! Each step solves `(JᵀWJ + λ (diag JᵀWJ + ε I)) δ = −JᵀWr` and is kept only if `F`
+//! decreases (then λ ÷ 3, else λ × 4). Primitives are refined independently and in
+//! parallel, so the result is deterministic.
+//!
+//! **Existence re-check.** Refinement can make primitives redundant (two squares slide
+//! onto the same wall section). The refined set is scored with the binary chamfer
+//! ([`crate::chamfer`], same options as the fit) and the discrete [`polish`] removes
+//! every primitive whose removal does not increase it: redundant ones are dropped.
+//!
+//! **Merging.** A primitive that is only partly redundant (a third cylinder overlapping
+//! two that tile a run, a cylinder reaching into an elbow) survives that check, because
+//! its neighbours were refined with its points taken. So each primitive, fewest points
+//! first, is tried for removal *with* its neighbours (the primitives that would own its
+//! points) re-refined on the points they would then own; the removal is kept when the
+//! local chamfer (the points of the primitive and of its neighbours, each at
+//! `min(d², d_cap)`, plus the samples of all primitives involved) does not increase.
+//! In this check the samples are weighted as if the surfaces carried as many samples as
+//! the cloud has points (the balance of the DESIGN §4 chamfer); with the fitter's coarser
+//! samples, overlapping primitives that shave a little off many point distances would
+//! always win.
+
+use std::time::Instant;
+
+use nalgebra::{DMatrix, DVector, Point3, SMatrix, SVector, UnitQuaternion, Vector3};
+use rayon::prelude::*;
+
+use crate::atlas::Shape;
+use crate::chamfer::{ChamferOptions, Coefficients, Evaluator};
+use crate::lattice::CandidateSet;
+use crate::metrics::PrimitiveIndex;
+use crate::progress::Silent;
+use crate::solve::polish;
+use crate::spatial::PointIndex;
+use crate::{Error, Pose, Primitive, Result};
+
+/// Options of [`refine`].
+#[derive(Debug, Clone, PartialEq)]
+pub struct RefineOptions {
+    /// Assignment / LM rounds.
+    pub rounds: usize,
+    /// LM iterations per primitive and round.
+    pub iterations: usize,
+    /// Points farther than this from every primitive are ignored (scene units);
+    /// `None` = the fit's `cap`.
+    pub trim: Option<f64>,
+    /// Each size stays within `[s₀ / g, s₀ · g]` of its start `s₀` (g ≥ 1).
+    pub max_growth: f64,
+    /// Re-check existence with the binary chamfer after refinement.
+    pub recheck: bool,
+    /// Try to merge each primitive into its neighbours (see the module docs).
+    pub merge: bool,
+    /// Coarse to fine: fit a finer lattice where refined primitives leave points
+    /// unexplained (done by [`crate::fit::fit`], see there).
+    pub fill: bool,
+}
+
+impl Default for RefineOptions {
+    fn default() -> Self {
+        RefineOptions {
+            rounds: 4,
+            iterations: 6,
+            trim: None,
+            max_growth: 2.0,
+            recheck: true,
+            merge: true,
+            fill: true,
+        }
+    }
+}
+
+impl RefineOptions {
+    /// Checks ranges.
+    pub fn validate(&self) -> Result<()> {
+        if !(self.max_growth.is_finite() && self.max_growth >= 1.0) {
+            return Err(Error::invalid(format!(
+                "refinement max growth must be ≥ 1, got {}",
+                self.max_growth
+            )));
+        }
+        if let Some(t) = self.trim
+            && !(t.is_finite() && t > 0.0)
+        {
+            return Err(Error::invalid(format!(
+                "refinement trim must be a positive distance, got {t}"
+            )));
+        }
+        Ok(())
+    }
+}
+
+/// Output of [`refine`].
+#[derive(Debug, Clone)]
+pub struct Refined {
+    /// The refined primitives that survived the existence re-check.
+    pub primitives: Vec<Primitive>,
+    /// For each survivor, its index in the input slice.
+    pub source: Vec<usize>,
+    /// Binary chamfer (weighted total) of the input set.
+    pub loss_before: f64,
+    /// Binary chamfer of the output set.
+    pub loss_after: f64,
+    /// Primitives removed by the re-check.
+    pub dropped: usize,
+    /// Wall-clock seconds.
+    pub seconds: f64,
+}
+
+/// What refinement needs from the fit: the cloud with its index, the sample spacing of
+/// candidate surfaces and the chamfer options (weights, `d_cap`, β).
+pub struct RefineContext<'a> {
+    /// Input points.
+    pub points: &'a [Point3<f64>],
+    /// kd-tree over `points`.
+    pub index: &'a PointIndex,
+    /// Spacing of primitive surface samples σ (scene units).
+    pub sample_spacing: f64,
+    /// Loss options of the fit.
+    pub chamfer: &'a ChamferOptions,
+}
+
+/// Refines `primitives` against the cloud (see the module docs).
+pub fn refine(
+    ctx: &RefineContext<'_>,
+    primitives: &[Primitive],
+    options: &RefineOptions,
+) -> Result<Refined> {
+    options.validate()?;
+    let start = Instant::now();
+    let trim = options.trim.unwrap_or(ctx.chamfer.cap.sqrt());
+    let loss_before = binary_loss(ctx, primitives)?;
+    let limits: Vec<Vec<(f64, f64)>> = primitives
+        .iter()
+        .map(|p| {
+            sizes(&p.shape)
+                .iter()
+                .map(|s| (s / options.max_growth, s * options.max_growth))
+                .collect()
+        })
+        .collect();
+    let mut current = primitives.to_vec();
+    for _ in 0..options.rounds {
+        let groups = assign(ctx.points, &current, trim)?;
+        current = current
+            .par_iter()
+            .zip(&groups)
+            .zip(&limits)
+            .map(|((p, group), lim)| {
+                let assigned: Vec<Point3<f64>> = group.iter().map(|&j| ctx.points[j]).collect();
+                Fitter::new(ctx, &assigned, lim).run(p.clone(), options.iterations)
+            })
+            .collect();
+    }
+    let keep = if options.recheck && !current.is_empty() {
+        recheck(ctx, &current)?
+    } else {
+        vec![true; current.len()]
+    };
+    let mut source: Vec<usize> = (0..current.len()).filter(|&i| keep[i]).collect();
+    let mut primitives: Vec<Primitive> = source.iter().map(|&i| current[i].clone()).collect();
+    if options.merge {
+        let lims: Vec<Vec<(f64, f64)>> = source.iter().map(|&i| limits[i].clone()).collect();
+        let area: f64 = primitives.iter().map(Primitive::area).sum();
+        let merged = Merger {
+            ctx,
+            trim,
+            iterations: options.iterations,
+            sample_weight: ctx.sample_spacing.powi(2) * ctx.points.len() as f64
+                / area.max(f64::MIN_POSITIVE),
+        }
+        .run(primitives, lims)?;
+        source = merged.1.iter().map(|&k| source[k]).collect();
+        primitives = merged.0;
+    }
+    let loss_after = binary_loss(ctx, &primitives)?;
+    Ok(Refined {
+        dropped: current.len() - primitives.len(),
+        primitives,
+        source,
+        loss_before,
+        loss_after,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// A model as `(index in the merge input, primitive)` pairs, and the region (point
+/// indices) whose owners a merge changed.
+type Alive = (Vec<(usize, Primitive)>, Vec<usize>);
+
+/// The merge pass of the module docs.
+struct Merger<'a> {
+    ctx: &'a RefineContext<'a>,
+    trim: f64,
+    iterations: usize,
+    /// Weight of one sample's squared distance: `s² J / A` (sample spacing `s`, `J` points,
+    /// model area `A`), so that the samples count as if the surfaces carried as many
+    /// samples as there are points, as in the DESIGN §4 chamfer.
+    sample_weight: f64,
+}
+
+impl Merger<'_> {
+    /// Tries every primitive once, fewest points first; returns the survivors and their
+    /// indices in `prims`.
+    fn run(
+        &self,
+        prims: Vec<Primitive>,
+        limits: Vec<Vec<(f64, f64)>>,
+    ) -> Result<(Vec<Primitive>, Vec<usize>)> {
+        let mut owner = owners(self.ctx.points, &prims, self.trim)?;
+        let mut count = vec![0usize; prims.len()];
+        for o in owner.iter().flatten() {
+            count[*o] += 1;
+        }
+        let mut order: Vec<usize> = (0..prims.len()).collect();
+        order.sort_by_key(|&i| (count[i], i));
+        let mut alive: Vec<(usize, Primitive)> = prims.into_iter().enumerate().collect();
+        for id in order {
+            let Some(pos) = alive.iter().position(|a| a.0 == id) else {
+                continue;
+            };
+            if let Some((next, region)) = self.try_remove(&alive, &owner, pos, &limits)? {
+                alive = next;
+                // Only the region's owners change (up to points of third primitives that
+                // a moved neighbour now passes closer to); the rest shift their index.
+                for o in owner.iter_mut().flatten() {
+                    if *o > pos {
+                        *o -= 1;
+                    }
+                }
+                let model: Vec<Primitive> = alive.iter().map(|a| a.1.clone()).collect();
+                let fresh = owners_of(self.ctx.points, &region, &model, self.trim)?;
+                for (&j, o) in region.iter().zip(fresh) {
+                    owner[j] = o;
+                }
+            }
+        }
+        Ok(alive.into_iter().map(|(k, p)| (p, k)).unzip())
+    }
+
+    /// The model without `alive[pos]` and with its neighbours re-refined, if that does not
+    /// raise the local chamfer.
+    fn try_remove(
+        &self,
+        alive: &[(usize, Primitive)],
+        owners: &[Option<usize>],
+        pos: usize,
+        limits: &[Vec<(f64, f64)>],
+    ) -> Result<Option<Alive>> {
+        let model: Vec<Primitive> = alive.iter().map(|a| a.1.clone()).collect();
+        let mine: Vec<usize> = (0..owners.len())
+            .filter(|&j| owners[j] == Some(pos))
+            .collect();
+        let mut rest: Vec<(usize, Primitive)> = alive.to_vec();
+        rest.remove(pos);
+        let rest_model: Vec<Primitive> = rest.iter().map(|a| a.1.clone()).collect();
+        let heirs = owners_of(self.ctx.points, &mine, &rest_model, self.trim)?;
+        let mut neighbours: Vec<usize> = heirs.iter().flatten().copied().collect();
+        neighbours.sort_unstable();
+        neighbours.dedup();
+        // The region: the removed primitive's points and its neighbours' points.
+        let mut region = mine.clone();
+        for (j, o) in owners.iter().enumerate() {
+            if let Some(o) = o {
+                let k = if *o > pos {
+                    o - 1
+                } else if *o == pos {
+                    continue;
+                } else {
+                    *o
+                };
+                if neighbours.binary_search(&k).is_ok() {
+                    region.push(j);
+                }
+            }
+        }
+        region.sort_unstable();
+        let before = self.local_cost(
+            &region,
+            &model,
+            std::iter::once(pos)
+                .chain(neighbours.iter().map(|&k| if k >= pos { k + 1 } else { k })),
+        )?;
+        // Re-refine the neighbours on the region points each owns without the removed
+        // one, re-assigning the region between rounds.
+        let mut trial = rest.clone();
+        for _ in 0..MERGE_ROUNDS {
+            let model: Vec<Primitive> = trial.iter().map(|a| a.1.clone()).collect();
+            let region_owner = owners_of(self.ctx.points, &region, &model, self.trim)?;
+            let refitted: Vec<Primitive> = neighbours
+                .par_iter()
+                .map(|&k| {
+                    let pts: Vec<Point3<f64>> = region
+                        .iter()
+                        .zip(&region_owner)
+                        .filter(|(_, o)| **o == Some(k))
+                        .map(|(&j, _)| self.ctx.points[j])
+                        .collect();
+                    let lim = &limits[trial[k].0];
+                    Fitter::new(self.ctx, &pts, lim).run(trial[k].1.clone(), 2 * self.iterations)
+                })
+                .collect();
+            for (&k, p) in neighbours.iter().zip(refitted) {
+                trial[k].1 = p;
+            }
+        }
+        let trial_model: Vec<Primitive> = trial.iter().map(|a| a.1.clone()).collect();
+        let after = self.local_cost(&region, &trial_model, neighbours.iter().copied())?;
+        Ok((after <= before).then_some((trial, region)))
+    }
+
+    /// `w_point Σ_{j ∈ region} min(d(y_j, model)², d_cap) + w_prim Σ_{i ∈ sampled} Σ_x d(x, D)²`.
+    fn local_cost(
+        &self,
+        region: &[usize],
+        model: &[Primitive],
+        sampled: impl Iterator<Item = usize>,
+    ) -> Result<f64> {
+        let chamfer = self.ctx.chamfer;
+        let mut cost = 0.0;
+        if !model.is_empty() {
+            let index = PrimitiveIndex::new(model)?;
+            cost += chamfer.point_weight
+                * region
+                    .par_iter()
+                    .map(|&j| {
+                        let d = index
+                            .nearest(&self.ctx.points[j])
+                            .map_or(f64::INFINITY, |r| r.1);
+                        (d * d).min(chamfer.cap)
+                    })
+                    .sum::<f64>();
+        } else {
+            cost += chamfer.point_weight * chamfer.cap * region.len() as f64;
+        }
+        for i in sampled {
+            let p = &model[i];
+            cost += chamfer.primitive_weight
+                * self.sample_weight
+                * p.sample_surface(self.ctx.sample_spacing)
+                    .iter()
+                    .filter_map(|x| self.ctx.index.nearest(x).map(|r| r.1))
+                    .sum::<f64>();
+        }
+        Ok(cost)
+    }
+}
+
+/// For each point, its nearest primitive within `trim` (or `None`).
+fn owners(points: &[Point3<f64>], prims: &[Primitive], trim: f64) -> Result<Vec<Option<usize>>> {
+    let all: Vec<usize> = (0..points.len()).collect();
+    owners_of(points, &all, prims, trim)
+}
+
+/// For each of the points `which`, its nearest primitive within `trim` (or `None`).
+fn owners_of(
+    points: &[Point3<f64>],
+    which: &[usize],
+    prims: &[Primitive],
+    trim: f64,
+) -> Result<Vec<Option<usize>>> {
+    if prims.is_empty() {
+        return Ok(vec![None; which.len()]);
+    }
+    let index = PrimitiveIndex::new(prims)?;
+    Ok(which
+        .par_iter()
+        .map(|&j| {
+            index
+                .nearest(&points[j])
+                .filter(|(_, d)| *d <= trim)
+                .map(|(i, _)| i)
+        })
+        .collect())
+}
+
+/// For each primitive, the indices of the points whose nearest primitive it is, within `trim`.
+fn assign(points: &[Point3<f64>], prims: &[Primitive], trim: f64) -> Result<Vec<Vec<usize>>> {
+    let mut groups = vec![Vec::new(); prims.len()];
+    if prims.is_empty() {
+        return Ok(groups);
+    }
+    let index = PrimitiveIndex::new(prims)?;
+    let owner: Vec<Option<usize>> = points
+        .par_iter()
+        .map(|p| index.nearest(p).filter(|(_, d)| *d <= trim).map(|(i, _)| i))
+        .collect();
+    for (j, o) in owner.into_iter().enumerate() {
+        if let Some(i) = o {
+            groups[i].push(j);
+        }
+    }
+    Ok(groups)
+}
+
+/// The exact binary chamfer (weighted total) of `prims`, β as in the fit.
+fn binary_loss(ctx: &RefineContext<'_>, prims: &[Primitive]) -> Result<f64> {
+    if prims.is_empty() {
+        return Ok(ctx.chamfer.point_weight * ctx.chamfer.cap * ctx.points.len() as f64);
+    }
+    let set = CandidateSet::from_primitives(prims, ctx.sample_spacing)?;
+    let coeffs = Coefficients::build(ctx.points, &set, ctx.chamfer, &Silent)?;
+    Ok(Evaluator::new(&coeffs)
+        .binary_value(&vec![true; set.len()])
+        .total)
+}
+
+/// Which primitives stay: the discrete polish started from "all exist".
+fn recheck(ctx: &RefineContext<'_>, prims: &[Primitive]) -> Result<Vec<bool>> {
+    let set = CandidateSet::from_primitives(prims, ctx.sample_spacing)?;
+    let coeffs = Coefficients::build(ctx.points, &set, ctx.chamfer, &Silent)?;
+    let mut exists = vec![true; set.len()];
+    polish(&coeffs, &vec![1.0; set.len()], &mut exists, 20);
+    Ok(exists)
+}
+
+/// The continuous sizes of a shape, in a fixed order (cylinder: length, radius; elbow:
+/// bend, radius); empty for meshes.
+pub fn sizes(shape: &Shape) -> Vec<f64> {
+    match shape {
+        Shape::Square { side } => vec![*side],
+        Shape::Disk { diameter } | Shape::Sphere { diameter } => vec![*diameter],
+        Shape::Cylinder { length, radius } => vec![*length, *radius],
+        Shape::Elbow { bend, radius } => vec![*bend, *radius],
+        Shape::Mesh(_) => Vec::new(),
+    }
+}
+
+/// `shape` with its sizes replaced by `s` (same order as [`sizes`]).
+pub fn with_sizes(shape: &Shape, s: &[f64]) -> Shape {
+    let get = |k: usize, old: f64| s.get(k).copied().unwrap_or(old);
+    match shape {
+        Shape::Square { side } => Shape::Square {
+            side: get(0, *side),
+        },
+        Shape::Disk { diameter } => Shape::Disk {
+            diameter: get(0, *diameter),
+        },
+        Shape::Sphere { diameter } => Shape::Sphere {
+            diameter: get(0, *diameter),
+        },
+        Shape::Cylinder { length, radius } => Shape::Cylinder {
+            length: get(0, *length),
+            radius: get(1, *radius),
+        },
+        Shape::Elbow { bend, radius } => Shape::Elbow {
+            bend: get(0, *bend),
+            radius: get(1, *radius),
+        },
+        Shape::Mesh(m) => Shape::Mesh(m.clone()),
+    }
+}
+
+/// `∂x/∂η_k` (local frame) of the surface point at local `x` for each size `s_k = e^{η_k}`,
+/// at fixed normalised surface coordinates (see the module docs).
+pub fn size_tangents(shape: &Shape, x: &Point3<f64>) -> Vec<Vector3<f64>> {
+    match shape {
+        Shape::Square { .. } | Shape::Disk { .. } | Shape::Sphere { .. } => vec![x.coords],
+        Shape::Cylinder { .. } => vec![Vector3::new(0.0, 0.0, x.z), Vector3::new(x.x, x.y, 0.0)],
+        Shape::Elbow { bend, .. } => {
+            let phi = x.y.atan2(x.x).clamp(0.0, std::f64::consts::FRAC_PI_2);
+            let centre = Vector3::new(phi.cos(), phi.sin(), 0.0) * *bend;
+            vec![centre, x.coords - centre]
+        }
+        Shape::Mesh(_) => Vec::new(),
+    }
+}
+
+/// Assignment rounds when neighbours are re-refined in a merge trial.
+const MERGE_ROUNDS: usize = 3;
+
+/// Residuals below this (relative to the primitive's size) carry no direction and are skipped.
+const TINY: f64 = 1e-12;
+
+/// The LM problem of one primitive: its assigned points, the cloud for its samples, size bounds.
+struct Fitter<'a> {
+    ctx: &'a RefineContext<'a>,
+    points: &'a [Point3<f64>],
+    limits: &'a [(f64, f64)],
+}
+
+/// Normal equations `A = Σ w JᵀJ`, `g = Σ w Jᵀr`, and the cost `F = Σ w r²`.
+/// Most parameters of one primitive: 3 rotation + 3 translation + 2 sizes.
+const MAX_PARAMS: usize = 8;
+
+/// A Jacobian row, zero-padded to [`MAX_PARAMS`] (kept on the stack).
+type Row = SVector<f64, MAX_PARAMS>;
+
+struct Normal {
+    /// `Σ w JᵀJ` (top-left `m × m` used).
+    a: SMatrix<f64, MAX_PARAMS, MAX_PARAMS>,
+    /// `Σ w Jᵀr` (first `m` used).
+    g: Row,
+    /// `Σ w r²`.
+    cost: f64,
+    /// Parameters in use.
+    m: usize,
+}
+
+impl Normal {
+    fn new(m: usize) -> Self {
+        Normal {
+            a: SMatrix::zeros(),
+            g: Row::zeros(),
+            cost: 0.0,
+            m,
+        }
+    }
+    fn add(&mut self, w: f64, r: f64, row: &Row) {
+        self.a += (w * row) * row.transpose();
+        self.g += (w * r) * row;
+        self.cost += w * r * r;
+    }
+}
+
+impl<'a> Fitter<'a> {
+    fn new(
+        ctx: &'a RefineContext<'a>,
+        points: &'a [Point3<f64>],
+        limits: &'a [(f64, f64)],
+    ) -> Self {
+        Fitter {
+            ctx,
+            points,
+            limits,
+        }
+    }
+
+    /// The Jacobian row of a residual with direction `dir` (`∂r/∂x = dir`) at scene
+    /// point `x` whose local point is `local`.
+    fn row(&self, p: &Primitive, x: &Point3<f64>, local: &Point3<f64>, dir: &Vector3<f64>) -> Row {
+        let tangents = size_tangents(&p.shape, local);
+        let mut row = Row::zeros();
+        let lever = x.coords - p.pose.translation;
+        row.fixed_rows_mut::<3>(0).copy_from(&lever.cross(dir));
+        row.fixed_rows_mut::<3>(3).copy_from(dir);
+        for (k, t) in tangents.iter().enumerate().take(MAX_PARAMS - 6) {
+            row[6 + k] = dir.dot(&(p.pose.rotation * t * p.pose.scale));
+        }
+        row
+    }
+
+    /// Cost and (when `jacobian`) normal equations of `p`.
+    fn normal(&self, p: &Primitive, jacobian: bool) -> Normal {
+        let m = 6 + sizes(&p.shape).len();
+        let mut out = Normal::new(m);
+        let tiny = TINY * p.bounding_radius().max(1.0);
+        let w_point = self.ctx.chamfer.point_weight;
+        for y in self.points {
+            let c = p.closest_point(y);
+            let r = (y - c).norm();
+            if r <= tiny {
+                continue;
+            }
+            if jacobian {
+                let n = (y - c) / r;
+                let row = self.row(p, &c, &p.pose.to_local(&c), &(-n));
+                out.add(w_point, r, &row);
+            } else {
+                out.cost += w_point * r * r;
+            }
+        }
+        let w_prim = self.ctx.chamfer.primitive_weight;
+        let spacing = self.ctx.sample_spacing / p.pose.scale;
+        for local in p.shape.sample_surface(spacing) {
+            let x = p.pose.to_scene(&local);
+            let Some((j, _)) = self.ctx.index.nearest(&x) else {
+                continue;
+            };
+            let q = self.ctx.points[j as usize];
+            let r = (x - q).norm();
+            if r <= tiny {
+                continue;
+            }
+            if jacobian {
+                let row = self.row(p, &x, &local, &((x - q) / r));
+                out.add(w_prim, r, &row);
+            } else {
+                out.cost += w_prim * r * r;
+            }
+        }
+        out
+    }
+
+    /// `p` moved by the step `delta` (ω, τ, η), or `None` when the result is invalid.
+    fn apply(&self, p: &Primitive, delta: &DVector<f64>) -> Option<Primitive> {
+        let omega = Vector3::new(delta[0], delta[1], delta[2]);
+        let tau = Vector3::new(delta[3], delta[4], delta[5]);
+        let s: Vec<f64> = sizes(&p.shape)
+            .iter()
+            .enumerate()
+            .map(|(k, s)| {
+                let (lo, hi) = self.limits.get(k).copied().unwrap_or((0.0, f64::INFINITY));
+                (s * delta[6 + k].exp()).clamp(lo, hi)
+            })
+            .collect();
+        let shape = with_sizes(&p.shape, &s);
+        shape.validate().ok()?;
+        let pose = Pose {
+            rotation: UnitQuaternion::from_scaled_axis(omega) * p.pose.rotation,
+            translation: p.pose.translation + tau,
+            scale: p.pose.scale,
+        };
+        let finite = pose.translation.iter().all(|v| v.is_finite())
+            && pose.rotation.coords.iter().all(|v| v.is_finite());
+        finite.then(|| Primitive::new(shape, pose))
+    }
+
+    /// Up to `iterations` accepted LM steps from `p`.
+    fn run(&self, mut p: Primitive, iterations: usize) -> Primitive {
+        if self.points.len() < 3 {
+            return p;
+        }
+        let mut lambda = 1e-3;
+        let mut normal = self.normal(&p, true);
+        for _ in 0..iterations {
+            let mut accepted = false;
+            for _ in 0..6 {
+                let Some(delta) = self.step(&normal, lambda) else {
+                    break;
+                };
+                let Some(trial) = self.apply(&p, &delta) else {
+                    lambda *= 4.0;
+                    continue;
+                };
+                let cost = self.normal(&trial, false).cost;
+                if cost < normal.cost {
+                    p = trial;
+                    lambda = (lambda / 3.0).max(1e-9);
+                    accepted = true;
+                    break;
+                }
+                lambda *= 4.0;
+            }
+            if !accepted {
+                break;
+            }
+            normal = self.normal(&p, true);
+        }
+        p
+    }
+
+    /// The damped Gauss–Newton step, or `None` if the system cannot be solved.
+    fn step(&self, n: &Normal, lambda: f64) -> Option<DVector<f64>> {
+        let m = n.m;
+        let mut a: DMatrix<f64> = n.a.view((0, 0), (m, m)).clone_owned();
+        let eps = 1e-9 * (a.trace() / m as f64).max(f64::MIN_POSITIVE);
+        for i in 0..m {
+            a[(i, i)] += lambda * (a[(i, i)] + eps) + eps;
+        }
+        let g: DVector<f64> = n.g.rows(0, m).clone_owned();
+        let delta = a.cholesky()?.solve(&(-g));
+        delta.iter().all(|v| v.is_finite()).then_some(delta)
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn grid_square(side: f64, n: usize, z: f64) -> Vec<Point3<f64>> {
+        (0..n)
+            .flat_map(|i| (0..n).map(move |j| (i, j)))
+            .map(|(i, j)| {
+                let u = (i as f64 + 0.5) / n as f64 - 0.5;
+                let v = (j as f64 + 0.5) / n as f64 - 0.5;
+                Point3::new(u * side, v * side, z)
+            })
+            .collect()
+    }
+
+    fn context<'a>(
+        points: &'a [Point3<f64>],
+        index: &'a PointIndex,
+        chamfer: &'a ChamferOptions,
+    ) -> RefineContext<'a> {
+        RefineContext {
+            points,
+            index,
+            sample_spacing: 0.05,
+            chamfer,
+        }
+    }
+
+    #[test]
+    fn size_tangents_match_finite_differences() {
+        let h: f64 = 1e-6;
+        let shapes = [
+            Shape::Square { side: 1.3 },
+            Shape::Disk { diameter: 0.9 },
+            Shape::Sphere { diameter: 0.7 },
+            Shape::Cylinder {
+                length: 1.2,
+                radius: 0.2,
+            },
+            Shape::Elbow {
+                bend: 0.6,
+                radius: 0.15,
+            },
+        ];
+        // A material point: the closest point of a probe, in normalised coordinates.
+        let probe = Point3::new(0.21, 0.33, 0.17);
+        for shape in shapes {
+            let s0 = sizes(&shape);
+            let x0 = shape.closest_point(&probe);
+            for (k, t) in size_tangents(&shape, &x0).iter().enumerate() {
+                // Scale the surface point along with size k: compare with the closest
+                // point of a slightly larger shape to the moved probe.
+                let mut s = s0.clone();
+                s[k] *= h.exp();
+                let bigger = with_sizes(&shape, &s);
+                let moved = x0 + t * h;
+                let d = bigger.distance(&moved);
+                assert!(
+                    d < 1e-9,
+                    "{shape:?} size {k}: moved point is {d} off the surface"
+                );
+            }
+        }
+    }
+
+    #[test]
+    fn a_shifted_tilted_square_snaps_onto_its_points() {
+        let points = grid_square(1.0, 40, 0.0);
+        let index = PointIndex::new(&points);
+        let chamfer = ChamferOptions {
+            cap: 0.25,
+            ..Default::default()
+        };
+        let ctx = context(&points, &index, &chamfer);
+        let start = Primitive::new(
+            Shape::Square { side: 0.8 },
+            Pose::new(
+                UnitQuaternion::from_euler_angles(0.08, -0.05, 0.3),
+                Vector3::new(0.07, -0.05, 0.04),
+            ),
+        );
+        let out = refine(
+            &ctx,
+            std::slice::from_ref(&start),
+            &RefineOptions {
+                rounds: 3,
+                iterations: 20,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(out.primitives.len(), 1);
+        let p = &out.primitives[0];
+        let worst = points.iter().map(|y| p.distance(y)).fold(0.0, f64::max);
+        assert!(worst < 0.01, "worst point distance {worst}; {p:?}");
+        assert!(out.loss_after < out.loss_before);
+        let Shape::Square { side } = p.shape else {
+            panic!("type changed")
+        };
+        assert!((side - 1.0).abs() < 0.05, "side {side}");
+    }
+
+    #[test]
+    fn a_redundant_copy_is_dropped() {
+        let points = grid_square(1.0, 30, 0.0);
+        let index = PointIndex::new(&points);
+        let chamfer = ChamferOptions {
+            cap: 0.25,
+            surface_distance: true,
+            ..Default::default()
+        };
+        let ctx = context(&points, &index, &chamfer);
+        let sq = |dx: f64| {
+            Primitive::new(
+                Shape::Square { side: 1.0 },
+                Pose::new(UnitQuaternion::identity(), Vector3::new(dx, 0.0, 0.0)),
+            )
+        };
+        let out = refine(&ctx, &[sq(0.0), sq(0.02)], &RefineOptions::default()).unwrap();
+        assert_eq!(out.primitives.len(), 1);
+        assert_eq!(out.dropped, 1);
+    }
+
+    #[test]
+    fn bad_options_are_errors() {
+        let bad = RefineOptions {
+            max_growth: 0.5,
+            ..Default::default()
+        };
+        assert!(bad.validate().is_err());
+        let bad = RefineOptions {
+            trim: Some(-1.0),
+            ..Default::default()
+        };
+        assert!(bad.validate().is_err());
+    }
+}
