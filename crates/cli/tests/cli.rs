@@ -736,6 +736,12 @@ fn synth_fit_eval_recovers_an_aligned_pipe() {
             &radius,
             "--bend",
             &bend,
+            // The truth's own lattice, exactly: the scene axes, origin 0, and no
+            // continuous refinement (which may merge two collinear cylinders into one
+            // longer one, a valid but different model).
+            "--frame",
+            "axis",
+            "--no-refine",
         ],
     );
     let result = read_json(&dir.join("result.json"));
@@ -917,15 +923,25 @@ fn mesh_type_fit_finds_the_object() {
     let prims = doc["primitives"].as_array().expect("primitives");
     assert_eq!(prims.len(), 1, "{doc:#}");
     assert_eq!(prims[0]["type"], "mesh");
-    assert_eq!(
-        prims[0]["pose"]["translation"],
-        serde_json::json!([1.0, 0.5, 0.0])
+    // Refinement fits the pose to the (noisy) points, so it is near, not on, the lattice.
+    let t: Vec<f64> = prims[0]["pose"]["translation"]
+        .as_array()
+        .expect("translation")
+        .iter()
+        .filter_map(|v| v.as_f64())
+        .collect();
+    let expected = [1.0, 0.5, 0.0];
+    assert!(
+        t.len() == 3 && t.iter().zip(expected).all(|(a, b)| (a - b).abs() < 0.01),
+        "translation {t:?}"
     );
+    // The refined pose also answers to the model→point term, which finite point sampling
+    // biases by a fraction of the point spacing: near-exact, not exact.
     assert!(
         doc["metrics"]["point_to_model_mean"]
             .as_f64()
             .expect("mean")
-            < 1e-9
+            < 1e-3
     );
     // The result names its mesh; eval loads it from there.
     let (stdout, _) = ok(&dir, &["eval", "scene.ply", "r.json", "--json"]);
