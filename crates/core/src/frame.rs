@@ -118,7 +118,7 @@ impl FrameChoice {
             })?;
         let q = numbers(frame.get("rotation"), 4, "frame rotation")?;
         let quaternion = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
-        if !(quaternion.norm() > 1e-12) {
+        if quaternion.norm().is_nan() || quaternion.norm() <= 1e-12 {
             return Err(Error::invalid(
                 "frame rotation must be a non-zero quaternion",
             ));
@@ -345,7 +345,7 @@ pub fn grid_origin(
     spacing: f64,
     size: f64,
 ) -> Point3<f64> {
-    if points.is_empty() || !(spacing > 0.0) {
+    if points.is_empty() || spacing.is_nan() || spacing <= 0.0 {
         return Point3::origin();
     }
     let m = rotation.to_rotation_matrix().into_inner();
