@@ -28,6 +28,7 @@ results under --out.
 import argparse
 import json
 import os
+import random
 import subprocess
 import time
 
@@ -111,9 +112,12 @@ def pyransac_plane(threshold):
     import pyransac3d as pyrsc
 
     def fit(pts):
+        random.seed(0)  # pyransac3d samples with Python's `random`
         np.random.seed(0)
-        eq, inliers = pyrsc.Plane().fit(pts, thresh=threshold, minPoints=3, maxIteration=1000)
-        return eq, inliers
+        result = pyrsc.Plane().fit(pts, thresh=threshold, maxIteration=1000)
+        if hasattr(result, "equation"):  # pyransac3d ≥ 0.7 returns a PlaneResult
+            return result.equation, result.inliers
+        return result
 
     return fit
 
@@ -151,8 +155,9 @@ def main():
     rows = [("primfit (auto frame, refined)", evaluate(args.primfit, args.scan, result), seconds, None)]
 
     for label, make in [("Open3D segment_plane loop", open3d_plane), ("pyransac3d Plane loop", pyransac_plane)]:
+        fit_plane = make(threshold)  # imports the library outside the timing
         t0 = time.perf_counter()
-        planes = segmentation_loop(points, make(threshold), args.max_planes)
+        planes = segmentation_loop(points, fit_plane, args.max_planes)
         seconds = time.perf_counter() - t0
         prims = [sq for n, d, pts in planes for sq in plane_squares(pts, n, d, side)]
         path = os.path.join(args.out, f"{name}_{label.split()[0].lower()}.json")
