@@ -155,7 +155,11 @@ def test_cli_fit_gives_the_same_result(tmp_path):
     primfit.write_ply(scene, cloud)
     out = tmp_path / "result.json"
     run = subprocess.run(
-        [str(cli), "fit", str(scene), "-o", str(out), "--size", "1", "--quiet"], capture_output=True, text=True
+        # The library's defaults: scene axes, no continuous refinement (the CLI defaults to
+        # --frame auto with refinement, for real scans).
+        [str(cli), "fit", str(scene), "-o", str(out), "--size", "1", "--frame", "axis", "--no-refine", "--quiet"],
+        capture_output=True,
+        text=True
     )
     assert run.returncode == 0, run.stderr
     doc = json.loads(out.read_text())
