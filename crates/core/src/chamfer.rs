@@ -195,71 +195,13 @@ impl Coefficients {
     ) -> Result<Self> {
         options.validate()?;
         let n = geometry.len();
-        if n > u32::MAX as usize {
-            return Err(Error::TooLarge(format!(
-                "{n} candidates (at most {})",
-                u32::MAX
-            )));
-        }
+        check_candidate_count(n)?;
         let cloud_index = PointIndex::new(cloud);
         progress.start("primitive term", n as u64);
         let g = primitive_coefficients(&cloud_index, geometry, progress);
         progress.finish();
-
-        progress.start("point term", cloud.len() as u64);
-        let centres = CentreIndex::new(geometry);
-        // Entries per row when β bounds them (β candidates × at most α samples); 0 = unknown
-        // or too large to reserve blindly.
-        let row_bound = options.beta.map_or(0, |b| {
-            b.min(n).saturating_mul(match options.model {
-                PointModel::Existence => 1,
-                PointModel::Independent => options.alpha.unwrap_or(0),
-            })
-        });
-        let row_bound = if row_bound <= 4096 { row_bound } else { 0 };
-        let rows: Vec<(Vec<usize>, Vec<u32>, Vec<f64>)> = cloud
-            .par_chunks(BUILD_CHUNK)
-            .map(|chunk| {
-                let mut builder = RowBuilder::new(geometry, &centres, options);
-                let mut lens = Vec::with_capacity(chunk.len());
-                // Reserving the bound up front avoids up to 2× growth slack per chunk: the
-                // chunks coexist with the final arrays while they are copied (the build's
-                // peak; 11 GB measured at 10M hallway points without this).
-                let reserve = chunk.len() * row_bound;
-                let (mut c, mut d) = (Vec::with_capacity(reserve), Vec::with_capacity(reserve));
-                for y in chunk {
-                    let before = c.len();
-                    builder.push_row(y, &mut c, &mut d);
-                    lens.push(c.len() - before);
-                }
-                progress.advance(chunk.len() as u64);
-                (lens, c, d)
-            })
-            .collect();
-        progress.finish();
-
-        let total: usize = rows.iter().map(|r| r.1.len()).sum();
-        let mut offsets = Vec::with_capacity(cloud.len() + 1);
-        let mut cand = Vec::with_capacity(total);
-        let mut dist = Vec::with_capacity(total);
-        offsets.push(0);
-        let mut max_row = 0;
-        for (lens, c, d) in rows {
-            for l in lens {
-                max_row = max_row.max(l);
-                offsets.push(offsets.last().copied().unwrap_or(0) + l);
-            }
-            cand.extend_from_slice(&c);
-            dist.extend_from_slice(&d);
-        }
-        Ok(Coefficients {
-            g,
-            offsets,
-            cand,
-            dist,
-            options: options.clone(),
-            max_row,
-        })
+        let rows = PointRows::build(cloud, geometry, options, progress);
+        Ok(rows.into_coefficients(g, options.clone()))
     }
 
     /// Number of candidates N.
@@ -289,6 +231,17 @@ impl Coefficients {
     }
 }
 
+/// Candidate ids are `u32` in the entries.
+fn check_candidate_count(n: usize) -> Result<()> {
+    if n > u32::MAX as usize {
+        return Err(Error::TooLarge(format!(
+            "{n} candidates (at most {})",
+            u32::MAX
+        )));
+    }
+    Ok(())
+}
+
 /// g_i for every candidate: sum over its samples of the squared distance to the nearest
 /// input point (thesis algorithm 4).
 fn primitive_coefficients(
@@ -308,6 +261,93 @@ fn primitive_coefficients(
             s
         })
         .collect()
+}
+
+/// The point term's sorted entries, row by row (thesis algorithm 6), before they are
+/// packed into [`Coefficients`].
+pub(crate) struct PointRows {
+    /// Entries per row.
+    pub lens: Vec<usize>,
+    /// Owner candidate of each entry, rows concatenated.
+    pub cand: Vec<u32>,
+    /// Squared distance of each entry.
+    pub dist: Vec<f64>,
+}
+
+impl PointRows {
+    /// Each point's entries (its β nearest candidates, or their α nearest samples), in
+    /// parallel over chunks of points.
+    pub fn build(
+        cloud: &[Point3<f64>],
+        geometry: &impl CandidateGeometry,
+        options: &ChamferOptions,
+        progress: &dyn Progress,
+    ) -> Self {
+        let n = geometry.len();
+        progress.start("point term", cloud.len() as u64);
+        let centres = CentreIndex::new(geometry);
+        // Entries per row when β bounds them (β candidates × at most α samples); 0 = unknown
+        // or too large to reserve blindly.
+        let row_bound = options.beta.map_or(0, |b| {
+            b.min(n).saturating_mul(match options.model {
+                PointModel::Existence => 1,
+                PointModel::Independent => options.alpha.unwrap_or(0),
+            })
+        });
+        let row_bound = if row_bound <= 4096 { row_bound } else { 0 };
+        let chunks: Vec<(Vec<usize>, Vec<u32>, Vec<f64>)> = cloud
+            .par_chunks(BUILD_CHUNK)
+            .map(|chunk| {
+                let mut builder = RowBuilder::new(geometry, &centres, options);
+                let mut lens = Vec::with_capacity(chunk.len());
+                // Reserving the bound up front avoids up to 2× growth slack per chunk: the
+                // chunks coexist with the final arrays while they are copied (the build's
+                // peak; 11 GB measured at 10M hallway points without this).
+                let reserve = chunk.len() * row_bound;
+                let (mut c, mut d) = (Vec::with_capacity(reserve), Vec::with_capacity(reserve));
+                for y in chunk {
+                    let before = c.len();
+                    builder.push_row(y, &mut c, &mut d);
+                    lens.push(c.len() - before);
+                }
+                progress.advance(chunk.len() as u64);
+                (lens, c, d)
+            })
+            .collect();
+        progress.finish();
+
+        let total: usize = chunks.iter().map(|r| r.1.len()).sum();
+        let mut rows = PointRows {
+            lens: Vec::with_capacity(cloud.len()),
+            cand: Vec::with_capacity(total),
+            dist: Vec::with_capacity(total),
+        };
+        for (lens, c, d) in chunks {
+            rows.lens.extend_from_slice(&lens);
+            rows.cand.extend_from_slice(&c);
+            rows.dist.extend_from_slice(&d);
+        }
+        rows
+    }
+
+    /// Packs the rows with the primitive term `g` into [`Coefficients`].
+    pub fn into_coefficients(self, g: Vec<f64>, options: ChamferOptions) -> Coefficients {
+        let mut offsets = Vec::with_capacity(self.lens.len() + 1);
+        offsets.push(0);
+        let mut max_row = 0;
+        for &l in &self.lens {
+            max_row = max_row.max(l);
+            offsets.push(offsets.last().copied().unwrap_or(0) + l);
+        }
+        Coefficients {
+            g,
+            offsets,
+            cand: self.cand,
+            dist: self.dist,
+            options,
+            max_row,
+        }
+    }
 }
 
 /// A KD-tree over candidate bounding-ball centres, for finding the candidates near a point.
@@ -708,6 +748,9 @@ impl CandidateGeometry for SampleSets {
         }
     }
 }
+
+mod dominance;
+pub use dominance::Reduced;
 
 #[cfg(test)]
 mod tests;

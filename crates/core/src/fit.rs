@@ -407,7 +407,9 @@ impl Settings {
 pub struct FitStats {
     /// Input points J.
     pub points: usize,
-    /// Candidates N after the occupancy prior.
+    /// Lattice candidates near the data (after the occupancy prior).
+    pub lattice_candidates: usize,
+    /// Candidates N the solver saw: those not dominated (`chamfer::dominance`).
     pub candidates: usize,
     /// (point, candidate) entries of the point term.
     pub entries: usize,
@@ -750,10 +752,17 @@ fn fit_pass(
     ));
 
     let t1 = Instant::now();
-    let coeffs = Coefficients::build(&cloud.points, &candidates, &settings.chamfer, progress)?;
+    // Exact: a dominated candidate has p = 0 at every minimum (`chamfer::dominance`).
+    let reduced =
+        Coefficients::build_reduced(&cloud.points, &candidates, &settings.chamfer, progress)?;
+    let lattice_candidates = candidates.len();
+    candidates.retain(&reduced.keep_mask(lattice_candidates));
+    let coeffs = reduced.coefficients;
     let coefficient_seconds = t1.elapsed().as_secs_f64();
     progress.message(&format!(
-        "{} entries ({} bytes each, {:.1} MiB in all)",
+        "{} of {lattice_candidates} candidates can exist (the rest are dominated); \
+         {} entries ({} bytes each, {:.1} MiB in all)",
+        candidates.len(),
         coeffs.entries(),
         Coefficients::BYTES_PER_ENTRY,
         coeffs.bytes() as f64 / (1 << 20) as f64
@@ -787,6 +796,7 @@ fn fit_pass(
     }
     let stats = FitStats {
         points: cloud.len(),
+        lattice_candidates,
         candidates: candidates.len(),
         entries: coeffs.entries(),
         bytes_per_entry: Coefficients::BYTES_PER_ENTRY,
