@@ -42,7 +42,8 @@ pub trait CandidateGeometry: Sync {
     fn sample_count(&self, i: usize) -> usize;
     /// Candidate `i`'s samples in scene coordinates, written into `out` (cleared first).
     fn scene_samples(&self, i: usize, out: &mut Vec<Point3<f64>>);
-    /// A ball `(centre, radius)` containing all samples of candidate `i`.
+    /// A ball `(centre, radius)` containing all samples of candidate `i` and, where
+    /// [`CandidateGeometry::surface_distance`] knows a continuous surface, that surface.
     fn bounding_ball(&self, i: usize) -> (Point3<f64>, f64);
     /// `(sample index, squared distance)` of candidate `i`'s sample nearest to `y`.
     fn nearest_sample(&self, i: usize, y: &Point3<f64>) -> (u32, f64);
@@ -353,8 +354,9 @@ impl PointRows {
 /// A KD-tree over candidate bounding-ball centres, for finding the candidates near a point.
 struct CentreIndex {
     index: PointIndex,
+    /// Bounding radius of each candidate (its samples and surface lie within it).
+    radii: Vec<f64>,
     max_radius: f64,
-    extent: f64,
 }
 
 impl CentreIndex {
@@ -363,13 +365,38 @@ impl CentreIndex {
             .map(|i| geometry.bounding_ball(i))
             .collect();
         let centres: Vec<Point3<f64>> = balls.iter().map(|b| b.0).collect();
-        let max_radius = balls.iter().map(|b| b.1).fold(0.0, f64::max);
-        let extent = crate::cloud::bounds_of(&centres).map_or(0.0, |(lo, hi)| (hi - lo).norm());
+        let radii: Vec<f64> = balls.iter().map(|b| b.1).collect();
+        let max_radius = radii.iter().copied().fold(0.0, f64::max);
         CentreIndex {
             index: PointIndex::new(&centres),
+            radii,
             max_radius,
-            extent,
         }
+    }
+
+    /// A lower bound on the squared distance from a point to candidate `i`, given the
+    /// point's squared distance to the candidate's centre: `(‖y − c‖ − R_i)₊²`, shrunk by
+    /// a rounding margin so that it never exceeds the computed exact distance.
+    #[inline]
+    fn lower_bound(&self, i: usize, centre_d2: f64) -> f64 {
+        let lb = (centre_d2.sqrt() * (1.0 - 1e-12) - self.radii[i] * (1.0 + 1e-12)).max(0.0);
+        lb * lb
+    }
+}
+
+/// `(squared distance, candidate)` ordered by distance, then index: the β ranking's order.
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Ranked(f64, u32);
+
+impl Eq for Ranked {}
+impl PartialOrd for Ranked {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+impl Ord for Ranked {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
     }
 }
 
@@ -379,8 +406,13 @@ struct RowBuilder<'a, G: CandidateGeometry> {
     centres: &'a CentreIndex,
     options: &'a ChamferOptions,
     near: Vec<(u32, f64)>,
+    bounds: Vec<(f64, u32)>,
+    best: std::collections::BinaryHeap<Ranked>,
     samples: Vec<(u32, f64)>,
     entries: Vec<(f64, u32, u32)>,
+    /// Search radius to start the next point with: the last point's β-th distance.
+    /// Consecutive points are usually neighbours; the result never depends on it.
+    start_radius: f64,
 }
 
 impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
@@ -390,8 +422,11 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             centres,
             options,
             near: Vec::new(),
+            bounds: Vec::new(),
+            best: std::collections::BinaryHeap::new(),
             samples: Vec::new(),
             entries: Vec::new(),
+            start_radius: options.cap.sqrt(),
         }
     }
 
@@ -427,8 +462,8 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
         }
     }
 
-    /// Fills `self.near` with the β candidates whose nearest sample is closest to `y`,
-    /// as `(candidate, squared distance of its nearest sample)`, ties to the lower index.
+    /// Fills `self.near` with the β candidates whose nearest sample (or surface) is
+    /// closest to `y`, as `(candidate, squared distance)`, ties to the lower index.
     fn select_candidates(&mut self, y: &Point3<f64>) {
         let n = self.geometry.len();
         let beta = self.options.beta.unwrap_or(usize::MAX);
@@ -441,50 +476,59 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
                 )
             }));
         } else {
-            self.expanding_search(y, beta);
-        }
-        let by_distance = |a: &(u32, f64), b: &(u32, f64)| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0));
-        if self.near.len() > beta {
-            self.near.select_nth_unstable_by(beta - 1, by_distance);
-            self.near.truncate(beta);
+            self.bounded_search(y, beta);
         }
     }
 
-    /// `d_i(y)`: squared distance to candidate `i`'s nearest sample or surface.
-    #[inline]
-    fn distance(&self, i: usize, y: &Point3<f64>) -> f64 {
-        candidate_distance(self.geometry, self.options, i, y)
-    }
-
-    /// Grows a search radius ρ until at least β candidates have their nearest sample
-    /// within ρ: any candidate with a sample within ρ has its centre within ρ + R_max, so
-    /// the β best are then all among those retrieved.
-    fn expanding_search(&mut self, y: &Point3<f64>, beta: usize) {
+    /// The β best candidates by a growing search radius ρ and lower bounds.
+    ///
+    /// Candidates whose centre is within ρ + R_max are retrieved and visited in order of
+    /// their lower bound `(‖y − c_i‖ − R_i)₊²`; exact distances are computed only until the
+    /// next bound exceeds the β-th best distance found. Once β are found and the β-th is
+    /// within ρ², no candidate outside the retrieved ball can be closer (its distance
+    /// exceeds ρ²), so the β are exact; otherwise ρ grows to the β-th distance (or
+    /// doubles) and the search repeats.
+    fn bounded_search(&mut self, y: &Point3<f64>, beta: usize) {
         let c = self.centres;
-        let mut rho = self.options.cap.sqrt().max(c.max_radius * 0.5).max(1e-9);
+        let n = self.geometry.len();
+        let mut rho = self.start_radius.max(1e-9);
         loop {
             let reach = rho + c.max_radius;
-            self.near.clear();
-            for (i, _) in c.index.within(y, reach * reach) {
-                self.near.push((i, self.distance(i as usize, y)));
+            self.bounds.clear();
+            for (i, d2) in c.index.within(y, reach * reach) {
+                self.bounds.push((c.lower_bound(i as usize, d2), i));
             }
-            let inside = self.near.iter().filter(|r| r.1 <= rho * rho).count();
-            let everything = self.near.len() == self.geometry.len();
-            if inside >= beta || everything || rho > 4.0 * (c.extent + c.max_radius) + 1.0 {
-                if !everything && inside < beta {
-                    // Past the whole extent: every candidate is within reach.
-                    self.near.clear();
-                    let n = self.geometry.len();
-                    self.near.extend((0..n).map(|i| {
-                        (
-                            i as u32,
-                            candidate_distance(self.geometry, self.options, i, y),
-                        )
-                    }));
+            self.bounds
+                .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+            self.best.clear();
+            for &(lb, i) in &self.bounds {
+                if self.best.len() == beta && self.best.peek().is_some_and(|w| lb > w.0) {
+                    break;
+                }
+                let d = candidate_distance(self.geometry, self.options, i as usize, y);
+                let entry = Ranked(d, i);
+                if self.best.len() < beta {
+                    self.best.push(entry);
+                } else if self.best.peek().is_some_and(|w| entry < *w) {
+                    self.best.pop();
+                    self.best.push(entry);
+                }
+            }
+            let worst = self.best.peek().map_or(f64::INFINITY, |w| w.0);
+            let done = (self.best.len() == beta && worst <= rho * rho) || self.bounds.len() == n;
+            if done {
+                self.near.extend(self.best.drain().map(|Ranked(d, i)| (i, d)));
+                if worst.is_finite() {
+                    self.start_radius = worst.sqrt();
                 }
                 return;
             }
-            rho *= 2.0;
+            rho = if self.best.len() == beta {
+                // Every candidate within the β-th distance has its centre within reach now.
+                worst.sqrt().max(rho * 1.000_001)
+            } else {
+                rho * 2.0
+            };
         }
     }
 }

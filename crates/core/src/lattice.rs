@@ -97,6 +97,8 @@ pub struct Template {
     pub index: PointIndex,
     /// Bounding radius of the samples about the local origin.
     pub radius: f64,
+    /// Bounding radius of the samples and the continuous surface together.
+    pub surface_radius: f64,
 }
 
 impl Template {
@@ -105,11 +107,13 @@ impl Template {
         let samples = shape.sample_surface(sample_spacing);
         let index = PointIndex::new(&samples);
         let radius = samples.iter().map(|p| p.coords.norm()).fold(0.0, f64::max);
+        let surface_radius = radius.max(shape.bounding_radius());
         Template {
             shape,
             samples,
             index,
             radius,
+            surface_radius,
         }
     }
 }
@@ -296,7 +300,7 @@ impl CandidateGeometry for CandidateSet {
         let pose = &self.poses[i];
         (
             Point3::from(pose.translation),
-            self.template(i).radius * pose.scale,
+            self.template(i).surface_radius * pose.scale,
         )
     }
     #[inline]
@@ -543,6 +547,71 @@ mod tests {
         }
         // A far-away node is never a candidate.
         assert!(set.poses.iter().all(|p| p.translation.norm() < 2.0));
+    }
+
+    /// The point term's β candidates per point equal a brute-force ranking of every
+    /// candidate, with surface or sample distances, for squares, cylinders and elbows
+    /// (whose surfaces reach beyond their samples' bounding radius).
+    #[test]
+    fn beta_rows_match_a_brute_force_ranking() {
+        use crate::chamfer::{ChamferOptions, Coefficients};
+        use crate::progress::Silent;
+        use rand::{RngExt, SeedableRng};
+        let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(7);
+        let points: Vec<Point3<f64>> = (0..300)
+            .map(|_| {
+                Point3::new(
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-1.0..1.0),
+                    rng.random_range(-0.3..0.3),
+                )
+            })
+            .collect();
+        let cloud = PointCloud::from_points(points.clone());
+        let shapes = vec![
+            Shape::Square { side: 1.0 },
+            Shape::Cylinder {
+                length: 1.0,
+                radius: 0.1,
+            },
+            Shape::Elbow {
+                bend: 0.5,
+                radius: 0.1,
+            },
+        ];
+        let set = CandidateSet::build(&LatticeSpec { shapes, ..spec() }, &cloud).unwrap();
+        for surface_distance in [true, false] {
+            for beta in [1, 7, 40] {
+                let o = ChamferOptions {
+                    beta: Some(beta),
+                    cap: 0.01,
+                    surface_distance,
+                    ..Default::default()
+                };
+                let c = Coefficients::build(&points, &set, &o, &Silent).unwrap();
+                for (j, y) in points.iter().enumerate() {
+                    let mut all: Vec<(f64, u32)> = (0..set.len())
+                        .map(|i| {
+                            let d = if surface_distance {
+                                set.surface_distance(i, y)
+                            } else {
+                                set.nearest_sample(i, y).1
+                            };
+                            (d, i as u32)
+                        })
+                        .collect();
+                    all.sort_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
+                    all.truncate(beta);
+                    let r = c.row(j);
+                    let got: Vec<(f64, u32)> = c.dist[r.clone()]
+                        .iter()
+                        .copied()
+                        .zip(c.cand[r].iter().copied())
+                        .collect();
+                    assert_eq!(got, all, "point {j}, β = {beta}, surface {surface_distance}");
+                }
+            }
+        }
     }
 
     #[test]
