@@ -230,6 +230,47 @@ impl Coefficients {
     pub fn row(&self, j: usize) -> Range<usize> {
         self.offsets[j]..self.offsets[j + 1]
     }
+
+    /// About `target` of the rows (a deterministic pseudo-random choice of points), with
+    /// the point weight scaled by `J / rows kept` so that the point term stays an unbiased
+    /// estimate of the full one. Every row when `target ≥ J`.
+    pub fn row_sample(&self, target: usize) -> Coefficients {
+        let j_all = self.points();
+        let every = j_all.div_ceil(target.max(1)).max(1) as u64;
+        let chosen: Vec<usize> = (0..j_all)
+            .filter(|&j| splitmix64(j as u64).is_multiple_of(every))
+            .collect();
+        let mut offsets = Vec::with_capacity(chosen.len() + 1);
+        offsets.push(0);
+        let total: usize = chosen.iter().map(|&j| self.row(j).len()).sum();
+        let (mut cand, mut dist) = (Vec::with_capacity(total), Vec::with_capacity(total));
+        let mut max_row = 0;
+        for &j in &chosen {
+            let r = self.row(j);
+            max_row = max_row.max(r.len());
+            cand.extend_from_slice(&self.cand[r.clone()]);
+            dist.extend_from_slice(&self.dist[r]);
+            offsets.push(cand.len());
+        }
+        let mut options = self.options.clone();
+        options.point_weight *= j_all as f64 / chosen.len().max(1) as f64;
+        Coefficients {
+            g: self.g.clone(),
+            offsets,
+            cand,
+            dist,
+            options,
+            max_row,
+        }
+    }
+}
+
+/// A 64-bit mix of `x` (SplitMix64's finaliser): a fixed, well-spread hash.
+fn splitmix64(x: u64) -> u64 {
+    let mut z = x.wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^ (z >> 31)
 }
 
 /// Candidate ids are `u32` in the entries.
@@ -517,7 +558,8 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             let worst = self.best.peek().map_or(f64::INFINITY, |w| w.0);
             let done = (self.best.len() == beta && worst <= rho * rho) || self.bounds.len() == n;
             if done {
-                self.near.extend(self.best.drain().map(|Ranked(d, i)| (i, d)));
+                self.near
+                    .extend(self.best.drain().map(|Ranked(d, i)| (i, d)));
                 if worst.is_finite() {
                     self.start_radius = worst.sqrt();
                 }

@@ -373,6 +373,7 @@ impl Settings {
             "weights": [self.chamfer.primitive_weight, self.chamfer.point_weight],
             "parameterization": self.solver.parameterization.name(),
             "max_iterations": self.solver.max_iterations,
+            "search_points": self.solver.search_points,
             "threshold": self.solver.threshold,
             "polish": self.solver.polish,
             "method": self.method.name(),
@@ -390,6 +391,7 @@ impl Settings {
                     "weights",
                     "parameterization",
                     "max_iterations",
+                    "search_points",
                     "threshold",
                     "polish",
                 ] {

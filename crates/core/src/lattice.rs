@@ -608,7 +608,10 @@ mod tests {
                         .copied()
                         .zip(c.cand[r].iter().copied())
                         .collect();
-                    assert_eq!(got, all, "point {j}, β = {beta}, surface {surface_distance}");
+                    assert_eq!(
+                        got, all,
+                        "point {j}, β = {beta}, surface {surface_distance}"
+                    );
                 }
             }
         }

@@ -58,7 +58,7 @@ use crate::chamfer::{ChamferOptions, Coefficients, Evaluator};
 use crate::lattice::CandidateSet;
 use crate::metrics::PrimitiveIndex;
 use crate::progress::Silent;
-use crate::solve::polish;
+use crate::solve::{Moves, polish};
 use crate::spatial::PointIndex;
 use crate::{Error, Pose, Primitive, Result};
 
@@ -437,7 +437,7 @@ fn recheck(ctx: &RefineContext<'_>, prims: &[Primitive]) -> Result<Vec<bool>> {
     let set = CandidateSet::from_primitives(prims, ctx.sample_spacing)?;
     let coeffs = Coefficients::build(ctx.points, &set, ctx.chamfer, &Silent)?;
     let mut exists = vec![true; set.len()];
-    polish(&coeffs, &vec![1.0; set.len()], &mut exists, 20);
+    polish(&coeffs, &vec![1.0; set.len()], &mut exists, 20, Moves::All);
     Ok(exists)
 }
 

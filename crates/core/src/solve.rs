@@ -72,6 +72,15 @@ pub struct SolverOptions {
     pub polish: bool,
     /// Maximum polish sweeps over all candidates.
     pub max_polish_sweeps: usize,
+    /// Clouds of more points are solved in two phases: L-BFGS and the polish's search
+    /// moves (add-and-prune, replace chains) run on about this many points (a fixed
+    /// pseudo-random subset, point term reweighted: [`Coefficients::row_sample`]), then
+    /// L-BFGS continues on all points for at most [`SolverOptions::full_iterations`] and
+    /// single flips are polished on all points, so the answer is a local minimum of the
+    /// exact binary loss for single flips. `usize::MAX`: always one phase on all points.
+    pub search_points: usize,
+    /// L-BFGS iterations on all points after the search phase (see `search_points`).
+    pub full_iterations: usize,
 }
 
 impl Default for SolverOptions {
@@ -86,6 +95,8 @@ impl Default for SolverOptions {
             threshold: 0.5,
             polish: true,
             max_polish_sweeps: 20,
+            search_points: 150_000,
+            full_iterations: 10,
         }
     }
 }
@@ -134,17 +145,77 @@ pub fn solve(
 ) -> Result<Solution> {
     validate(options)?;
     let n = coeffs.candidates();
-    let mut evaluator = Evaluator::new(coeffs);
+    let search =
+        (coeffs.points() > options.search_points).then(|| coeffs.row_sample(options.search_points));
     progress.start("solve", options.max_iterations as u64);
-    let run = match options.parameterization {
-        Parameterization::Box => {
-            let x0 = vec![options.initial; n];
-            lbfgs(x0, true, options, progress, |x, g| {
-                evaluator.evaluate(x, g).total
-            })
+    let run = match &search {
+        None => minimise(coeffs, vec![options.initial; n], options, progress),
+        Some(sub) => {
+            let first = minimise(sub, vec![options.initial; n], options, progress);
+            let full = SolverOptions {
+                max_iterations: options.full_iterations,
+                ..options.clone()
+            };
+            let mut second = minimise(coeffs, first.x, &full, progress);
+            let mut history = first.history;
+            history.extend(second.history.drain(1..));
+            LbfgsRun {
+                history,
+                iterations: first.iterations + second.iterations,
+                evaluations: first.evaluations + second.evaluations,
+                ..second
+            }
         }
+    };
+    progress.finish();
+    let mut evaluator = Evaluator::new(coeffs);
+    let mut exists: Vec<bool> = run.x.iter().map(|&p| p >= options.threshold).collect();
+    let thresholded = evaluator.binary_value(&exists);
+    let mut flips = 0;
+    if options.polish {
+        let sweeps = options.max_polish_sweeps;
+        match &search {
+            None => flips += polish(coeffs, &run.x, &mut exists, sweeps, Moves::All),
+            Some(sub) => {
+                flips += polish(sub, &run.x, &mut exists, sweeps, Moves::All);
+                flips += polish(coeffs, &run.x, &mut exists, sweeps, Moves::SingleFlips);
+            }
+        }
+    }
+    let binary = evaluator.binary_value(&exists);
+    Ok(Solution {
+        probability: run.x,
+        exists,
+        history: run.history,
+        iterations: run.iterations,
+        evaluations: run.evaluations,
+        stop: run.stop,
+        thresholded,
+        binary,
+        flips,
+    })
+}
+
+/// L-BFGS on `coeffs` from `start` (probabilities) in the chosen parameterization; the
+/// returned `x` are probabilities.
+fn minimise(
+    coeffs: &Coefficients,
+    start: Vec<f64>,
+    options: &SolverOptions,
+    progress: &dyn Progress,
+) -> LbfgsRun {
+    let mut evaluator = Evaluator::new(coeffs);
+    match options.parameterization {
+        Parameterization::Box => lbfgs(start, true, options, progress, |x, g| {
+            evaluator.evaluate(x, g).total
+        }),
         Parameterization::Logit => {
-            let z0 = vec![logit(options.initial); n];
+            let n = start.len();
+            // Clamped so that a warm start at 0 or 1 has a finite logit.
+            let z0 = start
+                .iter()
+                .map(|&p| logit(p.clamp(1e-9, 1.0 - 1e-9)))
+                .collect();
             let mut p = vec![0.0; n];
             let mut gp = vec![0.0; n];
             let mut run = lbfgs(z0, false, options, progress, |z, gz| {
@@ -160,27 +231,7 @@ pub fn solve(
             run.x.iter_mut().for_each(|z| *z = sigmoid(*z));
             run
         }
-    };
-    progress.finish();
-    let mut exists: Vec<bool> = run.x.iter().map(|&p| p >= options.threshold).collect();
-    let thresholded = evaluator.binary_value(&exists);
-    let flips = if options.polish {
-        polish(coeffs, &run.x, &mut exists, options.max_polish_sweeps)
-    } else {
-        0
-    };
-    let binary = evaluator.binary_value(&exists);
-    Ok(Solution {
-        probability: run.x,
-        exists,
-        history: run.history,
-        iterations: run.iterations,
-        evaluations: run.evaluations,
-        stop: run.stop,
-        thresholded,
-        binary,
-        flips,
-    })
+    }
 }
 
 fn validate(o: &SolverOptions) -> Result<()> {
@@ -392,12 +443,14 @@ pub fn lbfgs(
 /// candidates near a flipped one are revisited. Incremental: each point keeps its best and
 /// runner-up explanation (owner and distance of the two nearest existing candidates, or
 /// `d_cap`), so a move's change is a sum over the moved candidate's rows with no row scans;
-/// only a removal rescans the rows it owned. Returns the number of flips.
+/// only a removal rescans the rows it owned, and a rejected trial move is rolled back from
+/// an undo log of the explanations it changed. Returns the number of flips.
 pub fn polish(
     coeffs: &Coefficients,
     probability: &[f64],
     exists: &mut [bool],
     max_sweeps: usize,
+    moves: Moves,
 ) -> usize {
     let n = coeffs.candidates();
     let mut state = PolishState::new(coeffs, exists);
@@ -414,17 +467,22 @@ pub fn polish(
                 || (!state.exists[i] && delta < -state.tolerance)
             {
                 state.flip(i);
+                state.commit();
                 flips += 1;
             }
         }
-        for &i in order.iter().filter(|&&i| dirty[i]) {
-            if !state.exists[i] {
-                flips += state.add_and_prune(i);
+        if moves == Moves::All {
+            for &i in order.iter().filter(|&&i| dirty[i]) {
+                if !state.exists[i] {
+                    flips += state.add_and_prune(i);
+                    state.commit();
+                }
             }
-        }
-        for &i in order.iter().filter(|&&i| dirty[i]) {
-            if state.exists[i] {
-                flips += state.replace(i);
+            for &i in order.iter().filter(|&&i| dirty[i]) {
+                if state.exists[i] {
+                    flips += state.replace(i);
+                    state.commit();
+                }
             }
         }
         if flips == before {
@@ -443,6 +501,15 @@ pub fn polish(
     }
     exists.copy_from_slice(&state.exists);
     flips
+}
+
+/// Which moves [`polish`] makes.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Moves {
+    /// Single flips, add-and-prune and replace chains.
+    All,
+    /// Single flips only (linear in the entries per sweep).
+    SingleFlips,
 }
 
 /// Links of a replace chain (move 3 of [`polish`]).
@@ -465,6 +532,23 @@ struct Explanation {
     second_cost: f64,
 }
 
+/// One change to [`PolishState`], recorded so that a trial move can be rolled back without
+/// rescanning rows.
+#[derive(Debug, Clone, Copy)]
+enum Undo {
+    /// Point `j` had this explanation.
+    Point(u32, Explanation),
+    /// Candidate `i` was flipped.
+    Flip(u32),
+}
+
+/// A position in the undo log (see [`PolishState::rollback`]).
+#[derive(Debug, Clone, Copy)]
+struct Mark {
+    undo: usize,
+    flipped: usize,
+}
+
 /// The binary scene and each point's current explanation, for [`polish`].
 struct PolishState<'c> {
     coeffs: &'c Coefficients,
@@ -473,7 +557,10 @@ struct PolishState<'c> {
     point: Vec<Explanation>,
     neighbour_cache: Vec<Option<Vec<u32>>>,
     gain: Vec<f64>,
+    /// Candidates flipped by kept moves since the sweep began (rolled-back flips are not).
     flipped: Vec<usize>,
+    /// Changes since the last [`PolishState::commit`].
+    undo: Vec<Undo>,
     tolerance: f64,
 }
 
@@ -491,6 +578,7 @@ impl<'c> PolishState<'c> {
             neighbour_cache: vec![None; n],
             gain: vec![0.0; n],
             flipped: Vec::new(),
+            undo: Vec::new(),
             tolerance: 0.0,
         };
         let o = &coeffs.options;
@@ -529,24 +617,56 @@ impl<'c> PolishState<'c> {
         }
     }
 
-    /// Flips candidate `i` and updates the points it touches.
+    /// Flips candidate `i` and updates the points it touches (logged for rollback).
     fn flip(&mut self, i: usize) {
         self.exists[i] = !self.exists[i];
         self.flipped.push(i);
         let c = i as u32;
+        self.undo.push(Undo::Flip(c));
         for &(j, d) in &self.rows[i] {
             let e = &mut self.point[j as usize];
+            let old = *e;
             if self.exists[i] {
                 if e.owner == u32::MAX || d < e.cost {
                     (e.second_owner, e.second_cost) = (e.owner, e.cost);
                     (e.owner, e.cost) = (c, d);
                 } else if e.second_owner == u32::MAX || d < e.second_cost {
                     (e.second_owner, e.second_cost) = (c, d);
+                } else {
+                    continue;
                 }
             } else if e.owner == c || e.second_owner == c {
                 *e = explain(self.coeffs, j as usize, &self.exists);
+            } else {
+                continue;
+            }
+            self.undo.push(Undo::Point(j, old));
+        }
+    }
+
+    /// The current position of the undo log.
+    fn mark(&self) -> Mark {
+        Mark {
+            undo: self.undo.len(),
+            flipped: self.flipped.len(),
+        }
+    }
+
+    /// Undoes every flip since `mark`, restoring the saved explanations (no row scans).
+    fn rollback(&mut self, mark: Mark) {
+        while self.undo.len() > mark.undo {
+            match self.undo.pop() {
+                Some(Undo::Point(j, e)) => self.point[j as usize] = e,
+                Some(Undo::Flip(i)) => self.exists[i as usize] = !self.exists[i as usize],
+                None => break,
             }
         }
+        self.flipped.truncate(mark.flipped);
+    }
+
+    /// Forgets the undo log: the changes so far are kept.
+    fn commit(&mut self) {
+        self.undo.clear();
     }
 
     /// Move 3 of [`polish`]; returns the number of flips kept (0 if reverted).
@@ -565,7 +685,8 @@ impl<'c> PolishState<'c> {
     /// continue from each existing candidate that overlaps `k`. Flips are recorded in
     /// `journal`; on failure this link's flips are undone.
     fn chain(&mut self, i: usize, so_far: f64, depth: usize, journal: &mut Vec<usize>) -> bool {
-        let mark = journal.len();
+        let mark = self.mark();
+        let journal_mark = journal.len();
         let freed: Vec<u32> = self.rows[i]
             .iter()
             .filter(|&&(j, _)| self.point[j as usize].owner == i as u32)
@@ -590,11 +711,8 @@ impl<'c> PolishState<'c> {
                 }
             }
         }
-        while journal.len() > mark {
-            if let Some(c) = journal.pop() {
-                self.flip(c);
-            }
-        }
+        self.rollback(mark);
+        journal.truncate(journal_mark);
         false
     }
 
@@ -690,6 +808,7 @@ impl<'c> PolishState<'c> {
         }
         displaced.sort_unstable();
         displaced.dedup();
+        let mark = self.mark();
         let mut gain = self.flip_delta(i);
         self.flip(i);
         let mut removed = Vec::new();
@@ -705,10 +824,7 @@ impl<'c> PolishState<'c> {
         if gain < -self.tolerance {
             1 + removed.len()
         } else {
-            for &k in removed.iter().rev() {
-                self.flip(k);
-            }
-            self.flip(i);
+            self.rollback(mark);
             0
         }
     }
@@ -773,9 +889,11 @@ fn transpose(coeffs: &Coefficients) -> Vec<Vec<(u32, f64)>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::chamfer::{ChamferOptions, SampleSets};
+    use crate::chamfer::{ChamferOptions, Evaluator, SampleSets};
     use crate::progress::Silent;
     use nalgebra::Point3;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     /// Rosenbrock-like separable quadratic with a known box-constrained minimiser.
     #[test]
@@ -875,6 +993,107 @@ mod tests {
         }
     }
 
+    /// A random planar problem: points on a few true segments, candidate segments on a grid.
+    fn segments(seed: u64) -> (Vec<Point3<f64>>, SampleSets) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut samples = Vec::new();
+        let mut owner = Vec::new();
+        let mut cloud = Vec::new();
+        for i in 0..30 {
+            let (x0, y0) = ((i % 6) as f64 * 0.5, (i / 6) as f64 * 0.5);
+            for k in 0..10 {
+                let p = Point3::new(x0 + 0.1 * k as f64, y0, 0.0);
+                samples.push(p);
+                owner.push(i);
+                if i % 4 == 1 {
+                    for _ in 0..8 {
+                        let jitter = rng.random_range(-0.05..0.05);
+                        cloud.push(Point3::new(p.x + jitter, p.y + 0.2 * jitter, 0.0));
+                    }
+                }
+            }
+        }
+        (cloud, SampleSets::new(&samples, &owner, 30).unwrap())
+    }
+
+    /// Row sampling keeps whole rows and rescales the point weight by J / rows kept.
+    #[test]
+    fn row_sample_keeps_whole_rows_and_reweights() {
+        let (cloud, sets) = segments(1);
+        let o = ChamferOptions {
+            cap: 0.05,
+            beta: Some(4),
+            ..Default::default()
+        };
+        let c = Coefficients::build(&cloud, &sets, &o, &Silent).unwrap();
+        let sub = c.row_sample(c.points() / 4);
+        let kept = sub.points();
+        assert!(kept > 0 && kept < c.points(), "{kept} of {}", c.points());
+        let scale = sub.options.point_weight / c.options.point_weight;
+        assert!((scale - c.points() as f64 / kept as f64).abs() < 1e-12);
+        // Each kept row is a row of the full coefficients.
+        let full: Vec<(Vec<u32>, Vec<u64>)> = (0..c.points())
+            .map(|j| {
+                let r = c.row(j);
+                (
+                    c.cand[r.clone()].to_vec(),
+                    c.dist[r].iter().map(|d| d.to_bits()).collect(),
+                )
+            })
+            .collect();
+        for j in 0..kept {
+            let r = sub.row(j);
+            let row = (
+                sub.cand[r.clone()].to_vec(),
+                sub.dist[r].iter().map(|d| d.to_bits()).collect(),
+            );
+            assert!(full.contains(&row));
+        }
+        assert_eq!(c.row_sample(usize::MAX).entries(), c.entries());
+    }
+
+    /// With fewer search points than points, the answer is still a local minimum of the
+    /// exact binary loss for single flips (checked by brute force), and close to the
+    /// one-phase answer.
+    #[test]
+    fn two_phase_solve_ends_at_a_single_flip_minimum_of_the_full_loss() {
+        for seed in 0..5 {
+            let (cloud, sets) = segments(seed);
+            let o = ChamferOptions {
+                cap: 0.05,
+                beta: Some(6),
+                ..Default::default()
+            };
+            let c = Coefficients::build(&cloud, &sets, &o, &Silent).unwrap();
+            let one = solve(&c, &SolverOptions::default(), &Silent).unwrap();
+            let two = solve(
+                &c,
+                &SolverOptions {
+                    search_points: c.points() / 3,
+                    ..Default::default()
+                },
+                &Silent,
+            )
+            .unwrap();
+            let mut ev = Evaluator::new(&c);
+            let value = two.binary.total;
+            assert_eq!(value, ev.binary_value(&two.exists).total);
+            for i in 0..c.candidates() {
+                let mut e = two.exists.clone();
+                e[i] = !e[i];
+                assert!(
+                    ev.binary_value(&e).total >= value - 1e-9 * value.abs(),
+                    "seed {seed}: flip {i}"
+                );
+            }
+            assert!(
+                value <= one.binary.total * 1.05,
+                "seed {seed}: {value} vs {}",
+                one.binary.total
+            );
+        }
+    }
+
     /// The linear transpose equals the definition: for each candidate, every row where it
     /// has an entry, once, with its first (smallest) distance there.
     #[test]
@@ -933,7 +1152,7 @@ mod tests {
         };
         let c = Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap();
         let mut exists = vec![true; 4];
-        polish(&c, &[0.5; 4], &mut exists, 20);
+        polish(&c, &[0.5; 4], &mut exists, 20, Moves::All);
         let mut ev = Evaluator::new(&c);
         let base = ev.binary_value(&exists).total;
         for i in 0..4 {
@@ -993,6 +1212,21 @@ mod polish_tests {
                         (fresh.cost, fresh.second_cost),
                         (kept.cost, kept.second_cost),
                         "row {j}"
+                    );
+                }
+                // A trial of a few flips rolled back leaves the state exactly as it was.
+                let (exists, point) = (st.exists.clone(), st.point.clone());
+                st.commit();
+                let mark = st.mark();
+                for _ in 0..rng.random_range(1..5) {
+                    st.flip(rng.random_range(0..12usize));
+                }
+                st.rollback(mark);
+                assert_eq!(st.exists, exists);
+                for (a, b) in st.point.iter().zip(&point) {
+                    assert_eq!(
+                        (a.owner, a.cost, a.second_owner, a.second_cost),
+                        (b.owner, b.cost, b.second_owner, b.second_cost)
                     );
                 }
             }

@@ -94,6 +94,11 @@ pub struct FitArgs {
     /// Maximum L-BFGS iterations.
     #[arg(long, default_value_t = 200)]
     pub max_iterations: usize,
+    /// Larger clouds are solved in two phases: L-BFGS and the polish's search moves on
+    /// about this many points (point term reweighted), then L-BFGS and single flips on
+    /// every point. 0 = one phase on every point (slower on large clouds).
+    #[arg(long, default_value_t = 150_000)]
+    pub search_points: usize,
     /// Skip the discrete polish after thresholding.
     #[arg(long)]
     pub no_polish: bool,
@@ -180,6 +185,10 @@ impl FitArgs {
             solver: SolverOptions {
                 parameterization: Parameterization::parse(&self.parameterization)?,
                 max_iterations: self.max_iterations,
+                search_points: match self.search_points {
+                    0 => usize::MAX,
+                    n => n,
+                },
                 polish: !self.no_polish,
                 ..Default::default()
             },
