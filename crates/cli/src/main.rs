@@ -31,7 +31,7 @@ struct Cli {
 enum Command {
     /// Fit primitives to a scan (PLY) and write result JSON and/or a mesh.
     #[command(allow_negative_numbers = true)]
-    Fit(commands::fit::FitArgs),
+    Fit(Box<commands::fit::FitArgs>),
     /// Generate a synthetic scene with ground truth.
     #[command(allow_negative_numbers = true)]
     Synth(commands::synth::SynthArgs),
@@ -57,7 +57,7 @@ fn main() -> ExitCode {
         verbose: cli.verbose,
     };
     let result = match cli.command {
-        Command::Fit(a) => commands::fit::run(a, &out),
+        Command::Fit(a) => commands::fit::run(*a, &out),
         Command::Synth(a) => commands::synth::run(a, &out),
         Command::Eval(a) => commands::eval::run(a, &out),
         Command::Register(a) => commands::register::run(a, &out),
