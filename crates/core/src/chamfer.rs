@@ -425,22 +425,6 @@ impl CentreIndex {
     }
 }
 
-/// `(squared distance, candidate)` ordered by distance, then index: the β ranking's order.
-#[derive(Debug, Clone, Copy, PartialEq)]
-struct Ranked(f64, u32);
-
-impl Eq for Ranked {}
-impl PartialOrd for Ranked {
-    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
-        Some(self.cmp(other))
-    }
-}
-impl Ord for Ranked {
-    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
-        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
-    }
-}
-
 /// Builds the sorted entries of one point at a time, reusing its buffers.
 struct RowBuilder<'a, G: CandidateGeometry> {
     geometry: &'a G,
@@ -448,7 +432,6 @@ struct RowBuilder<'a, G: CandidateGeometry> {
     options: &'a ChamferOptions,
     near: Vec<(u32, f64)>,
     bounds: Vec<(f64, u32)>,
-    best: std::collections::BinaryHeap<Ranked>,
     samples: Vec<(u32, f64)>,
     entries: Vec<(f64, u32, u32)>,
     /// Search radius to start the next point with: the last point's β-th distance.
@@ -464,7 +447,6 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             options,
             near: Vec::new(),
             bounds: Vec::new(),
-            best: std::collections::BinaryHeap::new(),
             samples: Vec::new(),
             entries: Vec::new(),
             start_radius: options.cap.sqrt(),
@@ -523,15 +505,17 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
 
     /// The β best candidates by a growing search radius ρ and lower bounds.
     ///
-    /// Candidates whose centre is within ρ + R_max are retrieved and visited in order of
-    /// their lower bound `(‖y − c_i‖ − R_i)₊²`; exact distances are computed only until the
-    /// next bound exceeds the β-th best distance found. Once β are found and the β-th is
-    /// within ρ², no candidate outside the retrieved ball can be closer (its distance
-    /// exceeds ρ²), so the β are exact; otherwise ρ grows to the β-th distance (or
-    /// doubles) and the search repeats.
+    /// Candidates whose centre is within ρ + R_max are retrieved with their lower bounds
+    /// `(‖y − c_i‖ − R_i)₊²`. The β with the smallest bounds are measured exactly; their
+    /// largest distance W bounds the β-th best, so of the rest only those with a bound
+    /// ≤ W are measured. Once β are found and the β-th is within ρ², no candidate outside
+    /// the retrieved ball can be closer (its distance exceeds ρ²), so the β are exact;
+    /// otherwise ρ grows to the β-th distance (or doubles) and the search repeats.
     fn bounded_search(&mut self, y: &Point3<f64>, beta: usize) {
         let c = self.centres;
         let n = self.geometry.len();
+        let by_bound = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        let by_distance = |a: &(u32, f64), b: &(u32, f64)| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0));
         let mut rho = self.start_radius.max(1e-9);
         loop {
             let reach = rho + c.max_radius;
@@ -539,33 +523,44 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             for (i, d2) in c.index.within(y, reach * reach) {
                 self.bounds.push((c.lower_bound(i as usize, d2), i));
             }
-            self.bounds
-                .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
-            self.best.clear();
-            for &(lb, i) in &self.bounds {
-                if self.best.len() == beta && self.best.peek().is_some_and(|w| lb > w.0) {
-                    break;
-                }
+            let first = beta.min(self.bounds.len());
+            if self.bounds.len() > beta {
+                self.bounds.select_nth_unstable_by(beta - 1, by_bound);
+            }
+            self.near.clear();
+            for &(_, i) in &self.bounds[..first] {
                 let d = candidate_distance(self.geometry, self.options, i as usize, y);
-                let entry = Ranked(d, i);
-                if self.best.len() < beta {
-                    self.best.push(entry);
-                } else if self.best.peek().is_some_and(|w| entry < *w) {
-                    self.best.pop();
-                    self.best.push(entry);
+                self.near.push((i, d));
+            }
+            let w = if first == beta {
+                self.near.iter().map(|e| e.1).fold(0.0, f64::max)
+            } else {
+                f64::INFINITY
+            };
+            for &(lb, i) in &self.bounds[first..] {
+                if lb <= w {
+                    let d = candidate_distance(self.geometry, self.options, i as usize, y);
+                    self.near.push((i, d));
                 }
             }
-            let worst = self.best.peek().map_or(f64::INFINITY, |w| w.0);
-            let done = (self.best.len() == beta && worst <= rho * rho) || self.bounds.len() == n;
-            if done {
-                self.near
-                    .extend(self.best.drain().map(|Ranked(d, i)| (i, d)));
+            if self.near.len() > beta {
+                self.near.select_nth_unstable_by(beta - 1, by_distance);
+                self.near.truncate(beta);
+            }
+            let worst = if self.near.len() == beta {
+                self.near.iter().map(|e| e.1).fold(0.0, f64::max)
+            } else {
+                f64::INFINITY
+            };
+            if worst <= rho * rho || self.bounds.len() == n {
                 if worst.is_finite() {
-                    self.start_radius = worst.sqrt();
+                    // Neighbouring points need about the same radius; a margin saves most
+                    // repeated searches.
+                    self.start_radius = 1.25 * worst.sqrt();
                 }
                 return;
             }
-            rho = if self.best.len() == beta {
+            rho = if worst.is_finite() {
                 // Every candidate within the β-th distance has its centre within reach now.
                 worst.sqrt().max(rho * 1.000_001)
             } else {
