@@ -275,9 +275,21 @@ impl Shape {
         }
     }
 
-    /// Euclidean distance from `p` to the surface (local frame).
+    /// Euclidean distance from `p` to the surface (local frame); equal to
+    /// `‖p − closest_point(p)‖`, with closed forms for the tubes (no trigonometry).
     pub fn distance(&self, p: &Point3<f64>) -> f64 {
-        (p - self.closest_point(p)).norm()
+        match self {
+            Shape::Cylinder { length, radius } => {
+                let beyond = (p.z.abs() - length / 2.0).max(0.0);
+                (p.x.hypot(p.y) - radius).hypot(beyond)
+            }
+            // Within the bend's quarter (0 ≤ angle ≤ π/2) the nearest tube circle lies in
+            // the plane through p and the z axis: distance to a circle of that plane.
+            Shape::Elbow { bend, radius } if p.x >= 0.0 && p.y >= 0.0 => {
+                ((p.x.hypot(p.y) - bend).hypot(p.z) - radius).abs()
+            }
+            _ => (p - self.closest_point(p)).norm(),
+        }
     }
 
     /// A triangle mesh of the surface for export (local frame), fine enough that its

@@ -1008,3 +1008,36 @@ fn hostile_spacings_never_explode() {
         }
     }
 }
+
+/// The closed-form distances equal the distance to the closest point, everywhere
+/// (inside the bend's quarter and outside it, on the axes, far and near).
+#[test]
+fn distance_equals_the_distance_to_the_closest_point() {
+    let mut rng = ChaCha8Rng::seed_from_u64(11);
+    for shape in all_shapes() {
+        let r = shape.bounding_radius();
+        let mut probes: Vec<Point3<f64>> = (0..2000)
+            .map(|_| {
+                Point3::new(
+                    rng.random_range(-2.0 * r..2.0 * r),
+                    rng.random_range(-2.0 * r..2.0 * r),
+                    rng.random_range(-2.0 * r..2.0 * r),
+                )
+            })
+            .collect();
+        probes.extend([
+            Point3::origin(),
+            Point3::new(0.0, 0.3 * r, 0.1),
+            Point3::new(0.3 * r, 0.0, -0.1),
+            Point3::new(-0.0, 0.2, 0.0),
+        ]);
+        for p in &probes {
+            let via_point = (p - shape.closest_point(p)).norm();
+            let d = shape.distance(p);
+            assert!(
+                (d - via_point).abs() <= 1e-12 * (1.0 + via_point),
+                "{shape:?} at {p:?}: {d} vs {via_point}"
+            );
+        }
+    }
+}
