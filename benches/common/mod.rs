@@ -131,11 +131,15 @@ impl BenchScene {
         }
     }
 
-    /// Resolved settings and the candidate set, as [`primfit::fit::fit`] builds them.
+    /// Resolved settings and the candidate set, as [`primfit::fit::fit`] builds them (before
+    /// the exact dominance reduction of `Coefficients::build_reduced`).
     pub fn prepare(&self, cloud: &PointCloud) -> (Settings, CandidateSet) {
         let index = PointIndex::new(&cloud.points);
         let settings = Settings::resolve(cloud, &index, &self.options()).expect("valid settings");
-        let candidates = CandidateSet::build(&settings.lattice(), cloud).expect("lattice");
+        let mut candidates = CandidateSet::build(&settings.lattice(), cloud).expect("lattice");
+        // The fitter's occupancy prior (`fit_pass`): candidates with no point near them.
+        let keep = candidates.near_data(&cloud.points, settings.cap + settings.sample_spacing);
+        candidates.retain(&keep);
         (settings, candidates)
     }
 
