@@ -478,11 +478,12 @@ fn table(rows: &[(Value, Value, Value)], threads: usize) -> String {
             .as_f64()
             .map_or("—".into(), |m| format!("{m:.4} m"));
         t.push_str(&format!(
-            "| {} | {} | {} | {} | {} | {} | {} | {} | {} ({}) | {} | {} | {} | {} | {} | {:.4} m | {} | {} | {} | {} | {} | {} |\n",
+            "| {} | {} | {} | {} ({}) | {} | {} | {} | {} | {} ({}) | {} | {} | {} | {} | {} | {:.4} m | {} | {} | {} | {} | {} | {} |\n",
             r["scene"].as_str().unwrap_or("?"),
             r["model"].as_str().unwrap_or("?"),
             count(&r["points"]),
-            format!("{} ({})", count(&r["candidates"]), count(&r["kept"])),
+            count(&r["candidates"]),
+            count(&r["kept"]),
             count(&r["entries"]),
             r["bytes_per_entry"],
             secs(&s["coefficients"]),
