@@ -337,7 +337,17 @@ impl PointRows {
             })
         });
         let row_bound = if row_bound <= 4096 { row_bound } else { 0 };
-        let chunks: Vec<(Vec<usize>, Vec<u32>, Vec<f64>)> = cloud
+        // Points are visited cell by cell (cells of side `cell`, in key order) so that each
+        // cell's candidate list is fetched from the tree once and shared by its points;
+        // the rows are put back in cloud order at the end.
+        let cell = CellGrid::new(cloud, centres.max_radius / 4.0);
+        let mut order: Vec<(u64, u32)> = cloud
+            .par_iter()
+            .enumerate()
+            .map(|(j, y)| (cell.key(y), j as u32))
+            .collect();
+        order.par_sort_unstable();
+        let chunks: Vec<(Vec<usize>, Vec<u32>, Vec<f64>)> = order
             .par_chunks(BUILD_CHUNK)
             .map(|chunk| {
                 let mut builder = RowBuilder::new(geometry, &centres, options);
@@ -347,9 +357,12 @@ impl PointRows {
                 // peak; 11 GB measured at 10M hallway points without this).
                 let reserve = chunk.len() * row_bound;
                 let (mut c, mut d) = (Vec::with_capacity(reserve), Vec::with_capacity(reserve));
-                for y in chunk {
+                for &(key, j) in chunk {
+                    if builder.cell_key != Some(key) {
+                        builder.load_cell(key, &cell);
+                    }
                     let before = c.len();
-                    builder.push_row(y, &mut c, &mut d);
+                    builder.push_row(&cloud[j as usize], &mut c, &mut d);
                     lens.push(c.len() - before);
                 }
                 progress.advance(chunk.len() as u64);
@@ -358,16 +371,32 @@ impl PointRows {
             .collect();
         progress.finish();
 
-        let total: usize = chunks.iter().map(|r| r.1.len()).sum();
+        // Back to cloud order.
+        let mut lens = vec![0usize; cloud.len()];
+        for ((chunk_lens, _, _), points) in chunks.iter().zip(order.chunks(BUILD_CHUNK)) {
+            for (&l, &(_, j)) in chunk_lens.iter().zip(points) {
+                lens[j as usize] = l;
+            }
+        }
+        let mut start = Vec::with_capacity(cloud.len());
+        let mut total = 0;
+        for &l in &lens {
+            start.push(total);
+            total += l;
+        }
         let mut rows = PointRows {
-            lens: Vec::with_capacity(cloud.len()),
-            cand: Vec::with_capacity(total),
-            dist: Vec::with_capacity(total),
+            lens,
+            cand: vec![0; total],
+            dist: vec![0.0; total],
         };
-        for (lens, c, d) in chunks {
-            rows.lens.extend_from_slice(&lens);
-            rows.cand.extend_from_slice(&c);
-            rows.dist.extend_from_slice(&d);
+        for ((chunk_lens, c, d), points) in chunks.into_iter().zip(order.chunks(BUILD_CHUNK)) {
+            let mut at = 0;
+            for (&l, &(_, j)) in chunk_lens.iter().zip(points) {
+                let to = start[j as usize];
+                rows.cand[to..to + l].copy_from_slice(&c[at..at + l]);
+                rows.dist[to..to + l].copy_from_slice(&d[at..at + l]);
+                at += l;
+            }
         }
         rows
     }
@@ -392,9 +421,52 @@ impl PointRows {
     }
 }
 
+/// A grid of cubic cells over the cloud's bounding box, for visiting points cell by cell.
+struct CellGrid {
+    origin: Point3<f64>,
+    side: f64,
+}
+
+impl CellGrid {
+    /// Cells of about `side` (coarser if the box would need more than 2²⁰ cells per axis).
+    fn new(cloud: &[Point3<f64>], side: f64) -> Self {
+        let (lo, hi) =
+            crate::cloud::bounds_of(cloud).unwrap_or((Point3::origin(), Point3::origin()));
+        let extent = (hi - lo).max();
+        let side = side.max(extent / f64::from(1u32 << 20)).max(1e-12);
+        CellGrid { origin: lo, side }
+    }
+
+    /// The cell of `y`: three 21-bit cell indices packed into one key.
+    fn key(&self, y: &Point3<f64>) -> u64 {
+        let index =
+            |v: f64, o: f64| (((v - o) / self.side).floor().max(0.0) as u64).min((1 << 21) - 1);
+        (index(y.x, self.origin.x) << 42)
+            | (index(y.y, self.origin.y) << 21)
+            | index(y.z, self.origin.z)
+    }
+
+    /// Centre of the cell with `key`.
+    fn centre(&self, key: u64) -> Point3<f64> {
+        let mask = (1u64 << 21) - 1;
+        let at = |k: u64, o: f64| o + (k as f64 + 0.5) * self.side;
+        Point3::new(
+            at(key >> 42, self.origin.x),
+            at((key >> 21) & mask, self.origin.y),
+            at(key & mask, self.origin.z),
+        )
+    }
+
+    /// Half the diagonal of a cell: every point of a cell is this close to its centre.
+    fn half_diagonal(&self) -> f64 {
+        self.side * 3f64.sqrt() / 2.0
+    }
+}
+
 /// A KD-tree over candidate bounding-ball centres, for finding the candidates near a point.
 struct CentreIndex {
     index: PointIndex,
+    centres: Vec<Point3<f64>>,
     /// Bounding radius of each candidate (its samples and surface lie within it).
     radii: Vec<f64>,
     max_radius: f64,
@@ -410,6 +482,7 @@ impl CentreIndex {
         let max_radius = radii.iter().copied().fold(0.0, f64::max);
         CentreIndex {
             index: PointIndex::new(&centres),
+            centres,
             radii,
             max_radius,
         }
@@ -437,6 +510,11 @@ struct RowBuilder<'a, G: CandidateGeometry> {
     /// Search radius to start the next point with: the last point's β-th distance.
     /// Consecutive points are usually neighbours; the result never depends on it.
     start_radius: f64,
+    /// The current cell and the candidates (id, centre) whose centre lies within
+    /// `cell_radius + R_max` of every point of it.
+    cell_key: Option<u64>,
+    cell_candidates: Vec<(u32, Point3<f64>)>,
+    cell_radius: f64,
 }
 
 impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
@@ -450,6 +528,22 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             samples: Vec::new(),
             entries: Vec::new(),
             start_radius: options.cap.sqrt(),
+            cell_key: None,
+            cell_candidates: Vec::new(),
+            cell_radius: 0.0,
+        }
+    }
+
+    /// Fetches the candidates near cell `key`: those a search of radius ρ (the current
+    /// start radius) from any point of the cell can reach.
+    fn load_cell(&mut self, key: u64, grid: &CellGrid) {
+        let c = self.centres;
+        self.cell_key = Some(key);
+        self.cell_radius = self.start_radius.max(1e-9);
+        let reach = self.cell_radius + c.max_radius + grid.half_diagonal();
+        self.cell_candidates.clear();
+        for (i, _) in c.index.within(&grid.centre(key), reach * reach) {
+            self.cell_candidates.push((i, c.centres[i as usize]));
         }
     }
 
@@ -505,53 +599,33 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
 
     /// The β best candidates by a growing search radius ρ and lower bounds.
     ///
-    /// Candidates whose centre is within ρ + R_max are retrieved with their lower bounds
-    /// `(‖y − c_i‖ − R_i)₊²`. The β with the smallest bounds are measured exactly; their
-    /// largest distance W bounds the β-th best, so of the rest only those with a bound
-    /// ≤ W are measured. Once β are found and the β-th is within ρ², no candidate outside
-    /// the retrieved ball can be closer (its distance exceeds ρ²), so the β are exact;
-    /// otherwise ρ grows to the β-th distance (or doubles) and the search repeats.
+    /// Candidates whose centre is within ρ + R_max are gathered with their lower bounds
+    /// `(‖y − c_i‖ − R_i)₊²` (from the current cell's list when it covers ρ, else from
+    /// the tree) and measured by [`RowBuilder::measure_bounded`]. Once β are found and the
+    /// β-th is within ρ², no candidate outside the gathered ball can be closer (its
+    /// distance exceeds ρ²), so the β are exact; otherwise ρ grows to the β-th distance
+    /// (or doubles) and the search repeats from the tree.
     fn bounded_search(&mut self, y: &Point3<f64>, beta: usize) {
         let c = self.centres;
         let n = self.geometry.len();
-        let by_bound = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
-        let by_distance = |a: &(u32, f64), b: &(u32, f64)| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0));
-        let mut rho = self.start_radius.max(1e-9);
+        let mut rho = self.cell_radius;
+        let mut from_cell = self.cell_key.is_some();
         loop {
             let reach = rho + c.max_radius;
             self.bounds.clear();
-            for (i, d2) in c.index.within(y, reach * reach) {
-                self.bounds.push((c.lower_bound(i as usize, d2), i));
-            }
-            let first = beta.min(self.bounds.len());
-            if self.bounds.len() > beta {
-                self.bounds.select_nth_unstable_by(beta - 1, by_bound);
-            }
-            self.near.clear();
-            for &(_, i) in &self.bounds[..first] {
-                let d = candidate_distance(self.geometry, self.options, i as usize, y);
-                self.near.push((i, d));
-            }
-            let w = if first == beta {
-                self.near.iter().map(|e| e.1).fold(0.0, f64::max)
+            if from_cell {
+                for &(i, centre) in &self.cell_candidates {
+                    let d2 = (y - centre).norm_squared();
+                    if d2 <= reach * reach {
+                        self.bounds.push((c.lower_bound(i as usize, d2), i));
+                    }
+                }
             } else {
-                f64::INFINITY
-            };
-            for &(lb, i) in &self.bounds[first..] {
-                if lb <= w {
-                    let d = candidate_distance(self.geometry, self.options, i as usize, y);
-                    self.near.push((i, d));
+                for (i, d2) in c.index.within(y, reach * reach) {
+                    self.bounds.push((c.lower_bound(i as usize, d2), i));
                 }
             }
-            if self.near.len() > beta {
-                self.near.select_nth_unstable_by(beta - 1, by_distance);
-                self.near.truncate(beta);
-            }
-            let worst = if self.near.len() == beta {
-                self.near.iter().map(|e| e.1).fold(0.0, f64::max)
-            } else {
-                f64::INFINITY
-            };
+            let worst = self.measure_bounded(y, beta);
             if worst <= rho * rho || self.bounds.len() == n {
                 if worst.is_finite() {
                     // Neighbouring points need about the same radius; a margin saves most
@@ -560,12 +634,50 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
                 }
                 return;
             }
+            from_cell = false;
             rho = if worst.is_finite() {
                 // Every candidate within the β-th distance has its centre within reach now.
                 worst.sqrt().max(rho * 1.000_001)
             } else {
-                rho * 2.0
+                rho.max(1e-9) * 2.0
             };
+        }
+    }
+
+    /// The β best of `self.bounds` into `self.near`; returns the β-th distance (∞ if
+    /// fewer than β). The β smallest bounds are measured exactly; their largest distance
+    /// W bounds the β-th best, so of the rest only those with a bound ≤ W are measured.
+    fn measure_bounded(&mut self, y: &Point3<f64>, beta: usize) -> f64 {
+        let by_bound = |a: &(f64, u32), b: &(f64, u32)| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1));
+        let by_distance = |a: &(u32, f64), b: &(u32, f64)| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0));
+        let first = beta.min(self.bounds.len());
+        if self.bounds.len() > beta {
+            self.bounds.select_nth_unstable_by(beta - 1, by_bound);
+        }
+        self.near.clear();
+        for &(_, i) in &self.bounds[..first] {
+            let d = candidate_distance(self.geometry, self.options, i as usize, y);
+            self.near.push((i, d));
+        }
+        let w = if first == beta {
+            self.near.iter().map(|e| e.1).fold(0.0, f64::max)
+        } else {
+            f64::INFINITY
+        };
+        for &(lb, i) in &self.bounds[first..] {
+            if lb <= w {
+                let d = candidate_distance(self.geometry, self.options, i as usize, y);
+                self.near.push((i, d));
+            }
+        }
+        if self.near.len() > beta {
+            self.near.select_nth_unstable_by(beta - 1, by_distance);
+            self.near.truncate(beta);
+        }
+        if self.near.len() == beta {
+            self.near.iter().map(|e| e.1).fold(0.0, f64::max)
+        } else {
+            f64::INFINITY
         }
     }
 }

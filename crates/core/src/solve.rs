@@ -17,6 +17,8 @@
 //! hallway 1: 12.685 vs 12.681). The box costs more evaluations (60–350 vs ~24), which
 //! is cheap next to building the coefficients.
 
+use rayon::prelude::*;
+
 use crate::chamfer::{Coefficients, Evaluator, LossValue};
 use crate::progress::Progress;
 use crate::{Error, Result};
@@ -568,6 +570,7 @@ impl<'c> PolishState<'c> {
     fn new(coeffs: &'c Coefficients, exists: &[bool]) -> Self {
         let n = coeffs.candidates();
         let point = (0..coeffs.points())
+            .into_par_iter()
             .map(|j| explain(coeffs, j, exists))
             .collect();
         let mut s = PolishState {
