@@ -20,21 +20,19 @@
 //! bounding-radius class), so each point computes exact distances only to primitives
 //! whose bounding ball can beat the best distance found so far.
 
-use std::num::NonZeroUsize;
-
-use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Point3;
 use rayon::prelude::*;
 use serde_json::{Map, Value};
 
 use crate::atlas::Shape;
 use crate::cloud::bounds_of;
+use crate::spatial::PointIndex;
 use crate::{Error, Primitive, Result};
 
 /// Primitives of one bounding-radius class with a kd-tree over their centres.
 struct RadiusClass {
     /// kd-tree over the centres; item `k` is `ids[k]`.
-    tree: ImmutableKdTree<f64, 3>,
+    tree: PointIndex,
     /// Indices into the primitive slice.
     ids: Vec<usize>,
     /// Largest bounding radius in the class.
@@ -78,13 +76,8 @@ impl<'a> PrimitiveIndex<'a> {
         let classes = by_class
             .into_iter()
             .map(|(_, ids)| {
-                let centres: Vec<[f64; 3]> = ids
-                    .iter()
-                    .map(|&i| prims[i].center().coords.into())
-                    .collect();
-                let tree = ImmutableKdTree::new_from_slice(&centres).map_err(|e| {
-                    Error::invalid(format!("cannot index primitive centres: {e:?}"))
-                })?;
+                let centres: Vec<Point3<f64>> = ids.iter().map(|&i| prims[i].center()).collect();
+                let tree = PointIndex::new(&centres);
                 let max_radius = ids
                     .iter()
                     .map(|&i| prims[i].bounding_radius())
@@ -107,7 +100,6 @@ impl<'a> PrimitiveIndex<'a> {
     /// The nearest primitive surface to `p`: `(index, distance)`, or `None` for an
     /// empty index. Ties go to the lower index.
     pub fn nearest(&self, p: &Point3<f64>) -> Option<(usize, f64)> {
-        let q: [f64; 3] = p.coords.into();
         let mut best: Option<(usize, f64)> = None;
         let consider = |i: usize, best: &mut Option<(usize, f64)>| {
             let d = self.prims[i].distance(p);
@@ -116,24 +108,15 @@ impl<'a> PrimitiveIndex<'a> {
             }
         };
         for class in &self.classes {
-            let nn = class
-                .tree
-                .query(&q)
-                .nearest_one::<SquaredEuclidean<f64>>()
-                .execute();
-            consider(class.ids[nn.item as usize], &mut best);
+            if let Some((k, _)) = class.tree.nearest(p) {
+                consider(class.ids[k as usize], &mut best);
+            }
         }
         for class in &self.classes {
             let bound = best.map_or(f64::INFINITY, |(_, d)| d) + class.max_radius;
-            let hits = class
-                .tree
-                .query(&q)
-                .within::<SquaredEuclidean<f64>>(bound * bound)
-                .unsorted()
-                .execute();
-            for hit in hits {
-                let i = class.ids[hit.item as usize];
-                let lower = hit.distance.sqrt() - self.prims[i].bounding_radius();
+            for (k, d2) in class.tree.within(p, bound * bound) {
+                let i = class.ids[k as usize];
+                let lower = d2.sqrt() - self.prims[i].bounding_radius();
                 if best.is_none_or(|(_, bd)| lower <= bd) {
                     consider(i, &mut best);
                 }
@@ -177,19 +160,10 @@ pub fn nearest_cloud_distances(queries: &[Point3<f64>], cloud: &[Point3<f64>]) -
     if cloud.is_empty() {
         return Err(Error::invalid("the point cloud is empty"));
     }
-    let pts: Vec<[f64; 3]> = cloud.iter().map(|p| p.coords.into()).collect();
-    let tree: ImmutableKdTree<f64, 3> = ImmutableKdTree::new_from_slice(&pts)
-        .map_err(|e| Error::invalid(format!("cannot index the point cloud: {e:?}")))?;
+    let tree = PointIndex::new(cloud);
     Ok(queries
         .par_iter()
-        .map(|q| {
-            let q: [f64; 3] = q.coords.into();
-            tree.query(&q)
-                .nearest_one::<SquaredEuclidean<f64>>()
-                .execute()
-                .distance
-                .sqrt()
-        })
+        .map(|q| tree.nearest(q).map_or(f64::INFINITY, |(_, d2)| d2.sqrt()))
         .collect())
 }
 
@@ -449,21 +423,14 @@ pub fn default_coverage_tau(points: &[Point3<f64>]) -> f64 {
     if points.len() < 2 {
         return 0.01 * diagonal;
     }
-    let pts: Vec<[f64; 3]> = points.iter().map(|p| p.coords.into()).collect();
-    let Ok(tree) = ImmutableKdTree::<f64, 3>::new_from_slice(&pts) else {
-        return 0.01 * diagonal;
-    };
+    let tree = PointIndex::new(points);
     let stride = points.len().div_ceil(10_000);
-    let two = NonZeroUsize::new(2).expect("2 > 0");
-    let nn: Vec<f64> = pts
+    let nn: Vec<f64> = points
         .par_iter()
         .step_by(stride)
         .map(|q| {
-            let hits = tree
-                .query(q)
-                .nearest_n::<SquaredEuclidean<f64>>(two)
-                .execute();
-            hits.iter().map(|h| h.distance).fold(0.0, f64::max).sqrt()
+            let hits = tree.nearest_n(q, 2);
+            hits.iter().map(|h| h.1).fold(0.0, f64::max).sqrt()
         })
         .collect();
     let median = percentile(&nn, 0.5);
