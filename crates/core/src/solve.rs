@@ -97,7 +97,7 @@ impl Default for SolverOptions {
             threshold: 0.5,
             polish: true,
             max_polish_sweeps: 20,
-            search_points: 150_000,
+            search_points: 50_000,
             full_iterations: 10,
         }
     }

@@ -97,7 +97,7 @@ pub struct FitArgs {
     /// Larger clouds are solved in two phases: L-BFGS and the polish's search moves on
     /// about this many points (point term reweighted), then L-BFGS and single flips on
     /// every point. 0 = one phase on every point (slower on large clouds).
-    #[arg(long, default_value_t = 150_000)]
+    #[arg(long, default_value_t = 50_000)]
     pub search_points: usize,
     /// Skip the discrete polish after thresholding.
     #[arg(long)]
