@@ -104,6 +104,14 @@ fn main() {
                 translation_spread: get("--tspread")
                     .map_or(d.translation_spread, |s| s.parse().expect("factor")),
                 screen: get("--screen").map(|s| s.parse().expect("count")),
+                vote_peaks: get("--vote-peaks").map_or(d.vote_peaks, |s| s.parse().expect("count")),
+                flip_moves: get("--flip-moves").map_or(d.flip_moves, |s| s.parse().expect("count")),
+                vote_keep: get("--vote-keep").map_or(d.vote_keep, |s| s.parse().expect("count")),
+                vote_bin: get("--vote-bin").map_or(d.vote_bin, |s| s.parse().expect("fraction")),
+                vote_spacing: get("--vote-spacing")
+                    .map_or(d.vote_spacing, |s| s.parse().expect("fraction")),
+                vote_steps: get("--vote-steps").map_or(d.vote_steps, |s| s.parse().expect("count")),
+                max_rounds: get("--max-rounds").map_or(d.max_rounds, |s| s.parse().expect("count")),
                 ..d
             };
             let t0 = Instant::now();

@@ -41,6 +41,7 @@
 pub mod geometry;
 pub mod icp;
 pub mod particle_filter;
+pub mod vote;
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -73,11 +74,29 @@ pub struct RegisterOptions {
     /// Particles of the first round (drawn from the prior).
     pub initial_particles: usize,
     /// Prior draws screened for the first population (see
-    /// [`RegisterOptions::initial_particles`]); `None` = none with rotation only, 8 ×
-    /// `initial_particles` with translation search (the 6-D prior is far larger).
+    /// [`RegisterOptions::initial_particles`]); `None` = `initial_particles`, or with
+    /// translation search but no votes ([`RegisterOptions::vote_peaks`] = 0), 8 ×
+    /// `initial_particles` (the 6-D prior is far larger). With votes, each draw is a
+    /// rotation (and scale) that gets `vote_peaks` translations.
     pub screen: Option<usize>,
     /// Cloud points (a stride subsample) of the screening proxy.
     pub screen_points: usize,
+    /// With translation search: vote peaks kept per prior rotation of the first
+    /// population ([`vote::vote_translation`]; each becomes a particle with that
+    /// translation); 0 = draw translations from the prior instead.
+    pub vote_peaks: usize,
+    /// With translation votes: the candidates (rotation, vote peak) with the most votes
+    /// that form the first population, each refined ([`vote::fine_peak`],
+    /// [`vote::mean_shift`]).
+    pub vote_keep: usize,
+    /// Bin (grid cell) of the translation vote, fraction of the model size.
+    pub vote_bin: f64,
+    /// Spacing of the model samples that vote, fraction of the model size.
+    pub vote_spacing: f64,
+    /// With translation search: mean-shift steps on the translation votes
+    /// ([`vote::mean_shift`], radius = the round's kernel) that move every new particle's
+    /// translation to the local vote peak for its rotation, each round; 0 = none.
+    pub vote_steps: usize,
     /// Particles of later rounds.
     pub particles: usize,
     /// Round limit per object.
@@ -113,6 +132,10 @@ pub struct RegisterOptions {
     pub search_support: f64,
     /// Leading particles moved downhill each round by trimmed-ICP steps at the kernel.
     pub local_moves: usize,
+    /// Leading particles whose approximate symmetry flips ([`symmetry_flips`]: turns by
+    /// π about the model's principal axes) join the next round, each round: a jump
+    /// between the basins a nearly symmetric object leaves in the measurement.
+    pub flip_moves: usize,
     /// ICP steps of each such move.
     pub local_steps: usize,
     /// Most samples of the outlier primitive.
@@ -145,6 +168,11 @@ impl Default for RegisterOptions {
             initial_particles: 2000,
             screen: None,
             screen_points: 500,
+            vote_peaks: 2,
+            vote_keep: 400,
+            vote_bin: 0.065,
+            vote_spacing: 0.04,
+            vote_steps: 2,
             particles: 200,
             max_rounds: 40,
             kernel_start: 0.08,
@@ -160,6 +188,7 @@ impl Default for RegisterOptions {
             search_support: 30.0,
             local_moves: 8,
             local_steps: 3,
+            flip_moves: 2,
             max_outlier_samples: 200_000,
             prior_margin: 1.0,
             sample_spacing: 1.0 / 15.0,
@@ -180,6 +209,8 @@ impl RegisterOptions {
             ("spread", self.spread),
             ("translation_spread", self.translation_spread),
             ("sample_spacing", self.sample_spacing),
+            ("vote_bin", self.vote_bin),
+            ("vote_spacing", self.vote_spacing),
             ("inlier_distance", self.inlier_distance),
         ];
         for (name, v) in positive {
@@ -210,9 +241,13 @@ impl RegisterOptions {
         if !(0.0..=1.0).contains(&self.threshold) {
             return Err(Error::invalid("threshold must lie in [0, 1]"));
         }
-        if self.initial_particles == 0 || self.particles == 0 || self.max_rounds == 0 {
+        if self.initial_particles == 0
+            || self.particles == 0
+            || self.max_rounds == 0
+            || self.vote_keep == 0
+        {
             return Err(Error::invalid(
-                "particle counts and max_rounds must be at least 1",
+                "particle counts, vote_keep and max_rounds must be at least 1",
             ));
         }
         if self.beta == 0 {
@@ -236,7 +271,7 @@ impl RegisterOptions {
 
     /// Prior draws screened for the first population (resolves `screen: None`).
     pub fn screen_draws(&self) -> usize {
-        self.screen.unwrap_or(if self.translation {
+        self.screen.unwrap_or(if self.translation && self.vote_peaks == 0 {
             8 * self.initial_particles
         } else {
             self.initial_particles
@@ -256,6 +291,11 @@ impl RegisterOptions {
             "initial_particles": self.initial_particles,
             "screen": self.screen_draws(),
             "screen_points": self.screen_points,
+            "vote_peaks": self.vote_peaks,
+            "vote_keep": self.vote_keep,
+            "vote_bin": self.vote_bin,
+            "vote_spacing": self.vote_spacing,
+            "vote_steps": self.vote_steps,
             "particles": self.particles,
             "max_rounds": self.max_rounds,
             "kernel_start": self.kernel_start,
@@ -271,6 +311,7 @@ impl RegisterOptions {
             "search_support": self.search_support,
             "local_moves": self.local_moves,
             "local_steps": self.local_steps,
+            "flip_moves": self.flip_moves,
             "prior_margin": self.prior_margin,
             "sample_spacing": self.sample_spacing,
             "icp": self.icp,
@@ -368,6 +409,22 @@ fn context<'a>(
         .sqrt()
         .max(1e-9 * size);
     let flips = symmetry_flips(&fine, &pivot);
+    let voting = options.translation && (options.vote_peaks > 0 || options.vote_steps > 0);
+    let (vote_index, vote_samples) = if voting {
+        (
+            Some(vote::VoteIndex::new(
+                &cloud.points,
+                options.vote_bin * size,
+            )),
+            shape
+                .sample_surface(options.vote_spacing * size)
+                .iter()
+                .map(|p| p.coords)
+                .collect(),
+        )
+    } else {
+        (None, Vec::new())
+    };
     let context = Context {
         cloud: &cloud.points,
         grid: grid.clone(),
@@ -381,6 +438,9 @@ fn context<'a>(
         size,
         centre,
         lever,
+        vote_index,
+        vote_samples,
+        flips: flips.clone(),
         options,
     };
     Ok((context, flips))
@@ -434,7 +494,7 @@ pub fn register(
             start_distance: options.kernel_start * size * scale,
             min_distance: kernel,
             shrink: 0.8,
-            max_iterations: 15,
+            max_iterations: std::env::var("SETTLE").map_or(15, |s| s.parse().unwrap()),
             tolerance: 1e-6 * size * scale,
         };
         let tries: Vec<Pose> = flips
@@ -459,6 +519,11 @@ pub fn register(
         let pick = (0..tries.len())
             .max_by(|&a, &b| m.score[a].total_cmp(&m.score[b]).then(b.cmp(&a)))
             .unwrap_or(0);
+        if std::env::var_os("PRIMFIT_TRACE").is_some() {
+            for (t, sc) in tries.iter().zip(&m.score) {
+                eprintln!("try {t:?} score {sc:.4}");
+            }
+        }
         let chosen = tries[pick];
         let refined = icp::refine(
             mesh,

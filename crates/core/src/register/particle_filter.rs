@@ -13,6 +13,7 @@ use rayon::prelude::*;
 use super::RegisterOptions;
 use super::geometry::{Chain, DistanceGrid, OutlierBox, Particles};
 use super::icp::{Freedom, IcpOptions, refine};
+use super::vote::{VoteIndex, fine_peak, mean_shift, vote_translation};
 use crate::atlas::MeshShape;
 use crate::chamfer::{CandidateGeometry, ChamferOptions, Coefficients, PointModel};
 use crate::lattice::Template;
@@ -78,6 +79,13 @@ pub(crate) struct Context<'a> {
     pub centre: Point3<f64>,
     /// RMS distance of the mesh's samples from the rotation centre (local units).
     pub lever: f64,
+    /// The cloud bucketed for translation votes (with translation search).
+    pub vote_index: Option<VoteIndex>,
+    /// The model samples that vote (local frame, local units).
+    pub vote_samples: Vec<Vector3<f64>>,
+    /// The identity and the model's approximate symmetry flips (poses to compose on the
+    /// right).
+    pub flips: Vec<Pose>,
     pub options: &'a RegisterOptions,
 }
 
@@ -160,19 +168,31 @@ impl Context<'_> {
             ..Default::default()
         };
         let solution = solve(&coeffs, &solver, &Silent)?;
-        let mut gain = vec![0.0; n];
-        for (j, y) in self.cloud.iter().enumerate() {
-            let mut b = outlier.surface_distance(0, y);
-            for k in 0..background.len() {
-                b = b.min(background.surface_distance(k, y));
-            }
-            for e in coeffs.row(j) {
-                let c = coeffs.cand[e] as usize;
-                if c >= offset {
-                    gain[c - offset] += (b - coeffs.dist[e]).max(0.0);
-                }
-            }
-        }
+        // Each point's cost under the background (outlier primitive and found objects),
+        // and each particle's gain over all points — not only over the β candidates each
+        // point keeps in the chamfer: in a concentrated population many particles pass
+        // near every object point and would crowd one another out of those lists.
+        let cost: Vec<f64> = self
+            .cloud
+            .par_iter()
+            .map(|y| {
+                (0..background.len())
+                    .map(|k| background.surface_distance(k, y))
+                    .fold(outlier.surface_distance(0, y), f64::min)
+            })
+            .collect();
+        let gain: Vec<f64> = (0..n)
+            .into_par_iter()
+            .map(|i| {
+                let (c, r) = particles.bounding_ball(i);
+                self.cloud
+                    .iter()
+                    .zip(&cost)
+                    .filter(|(y, b)| (*y - c).norm() <= r + b.sqrt())
+                    .map(|(y, b)| (b - particles.surface_distance(i, y)).max(0.0))
+                    .sum()
+            })
+            .collect();
         let score = (0..n)
             .map(|i| gain[i] - weight * coeffs.g[offset + i])
             .collect();
@@ -304,6 +324,9 @@ impl Context<'_> {
     /// [`RegisterOptions::screen_points`] cloud points.
     fn initial(&self, rng: &mut ChaCha8Rng) -> Vec<Pose> {
         let o = self.options;
+        if let Some(index) = self.vote_index.as_ref().filter(|_| o.vote_peaks > 0) {
+            return self.initial_by_vote(index, rng);
+        }
         let draws = o.screen_draws().max(o.initial_particles);
         let poses: Vec<Pose> = (0..draws).map(|_| self.prior(rng)).collect();
         if draws == o.initial_particles {
@@ -333,6 +356,89 @@ impl Context<'_> {
             .collect()
     }
 
+    /// The first population with translation votes: [`RegisterOptions::screen_draws`]
+    /// prior rotations (and scales), each with the translations of its
+    /// [`RegisterOptions::vote_peaks`] best vote peaks over the translation prior
+    /// ([`Context::vote`], one grid cell precise); the [`RegisterOptions::vote_keep`]
+    /// candidates with the most votes, each translation refined at point level.
+    fn initial_by_vote(&self, index: &VoteIndex, rng: &mut ChaCha8Rng) -> Vec<Pose> {
+        let o = self.options;
+        let draws = o.screen_draws().max(1);
+        let seeds: Vec<Pose> = (0..draws).map(|_| self.prior(rng)).collect();
+        let mut voted: Vec<(Pose, f64)> = seeds
+            .par_iter()
+            .map(|p| self.vote(index, p, o.vote_peaks))
+            .collect::<Vec<_>>()
+            .concat();
+        if voted.is_empty() {
+            return seeds.into_iter().take(o.vote_keep).collect();
+        }
+        // Stable: ties keep the draw order.
+        voted.sort_by(|a, b| b.1.total_cmp(&a.1));
+        voted.truncate(o.vote_keep);
+        let c = index.cell();
+        voted
+            .par_iter()
+            .map(|(p, _)| {
+                let offsets = self.vote_offsets(p);
+                let t = fine_peak(index, &offsets, p.translation, 1.5 * c, 0.25 * c);
+                let t = mean_shift(index, &offsets, t, 0.25 * c, o.vote_steps.max(1)).translation;
+                Pose {
+                    translation: t,
+                    ..*p
+                }
+            })
+            .collect()
+    }
+
+    /// The model samples that vote, rotated and scaled by `pose` (scene units).
+    fn vote_offsets(&self, pose: &Pose) -> Vec<Vector3<f64>> {
+        self.vote_samples
+            .iter()
+            .map(|m| pose.rotation * (m * pose.scale))
+            .collect()
+    }
+
+    /// `pose`'s rotation and scale with the translations of the `peaks` best vote peaks
+    /// over its translation prior (the model inside the scene box; votes within a bin of
+    /// it count),
+    /// bins of [`RegisterOptions::vote_bin`] × the model size; with the votes.
+    pub fn vote(&self, index: &VoteIndex, pose: &Pose, peaks: usize) -> Vec<(Pose, f64)> {
+        let (clo, chi) = self.translation_prior(&pose.rotation, pose.scale);
+        let shift = pose.rotation * (self.centre.coords * pose.scale);
+        let (lo, hi) = (clo - shift, chi - shift);
+        vote_translation(index, &self.vote_offsets(pose), &lo, &hi, peaks, 0)
+            .into_iter()
+            .map(|p| {
+                (
+                    Pose {
+                        translation: p.translation,
+                        ..*pose
+                    },
+                    p.votes,
+                )
+            })
+            .collect()
+    }
+
+    /// `pose` with its translation moved to the local peak of the translation votes for
+    /// its rotation and scale ([`RegisterOptions::vote_steps`] mean-shift steps of radius
+    /// `radius`, scene units); `pose` itself without voting.
+    fn shift_to_votes(&self, pose: Pose, radius: f64) -> Pose {
+        let Some(index) = self.vote_index.as_ref() else {
+            return pose;
+        };
+        if self.options.vote_steps == 0 {
+            return pose;
+        }
+        let offsets = self.vote_offsets(&pose);
+        let peak = mean_shift(index, &offsets, pose.translation, radius, self.options.vote_steps);
+        Pose {
+            translation: peak.translation,
+            ..pose
+        }
+    }
+
     /// Runs the filter for one more object, given those already `found`.
     pub fn run(
         &self,
@@ -341,7 +447,12 @@ impl Context<'_> {
         progress: &dyn Progress,
     ) -> Result<FilterResult> {
         let o = self.options;
+        let trace = std::env::var_os("PRIMFIT_TRACE").is_some();
+        let t0 = std::time::Instant::now();
         let mut poses = self.initial(rng);
+        if trace {
+            eprintln!("initial {:.3}s", t0.elapsed().as_secs_f64());
+        }
         let mut rounds = Vec::new();
         let mut best = (Pose::identity(), f64::NEG_INFINITY);
         let mut stable = 0;
@@ -349,8 +460,12 @@ impl Context<'_> {
         for round in 0..o.max_rounds {
             kernel =
                 self.size * (o.kernel_start * o.kernel_shrink.powi(round as i32)).max(o.kernel_end);
+            let t1 = std::time::Instant::now();
             let Measurement { score, existence } =
                 self.measure(found, poses.clone(), kernel, o.search_support, false, rng)?;
+            if trace {
+                eprintln!("round {round} measure {} particles {:.3}s", poses.len(), t1.elapsed().as_secs_f64());
+            }
             let (ib, &sb) = score
                 .iter()
                 .enumerate()
@@ -358,6 +473,9 @@ impl Context<'_> {
                 .expect("at least one particle");
             let previous = best.0;
             best = (poses[ib], sb);
+            if trace {
+                eprintln!("  best {:?} score {sb:.4}", best.0);
+            }
             let weights = tempered_weights(&score, o.ess);
             let ess = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
             rounds.push(RoundStats {
@@ -410,10 +528,33 @@ impl Context<'_> {
                     })
                     .collect::<Vec<_>>(),
             );
+            if trace {
+                eprintln!("  local {:.3}s", t1.elapsed().as_secs_f64());
+            }
+            // Symmetry jumps: the leaders turned by π about the model's principal axes;
+            // then the resampled particles, moved at random.
+            let mut moved: Vec<Pose> = order
+                .iter()
+                .take(o.flip_moves)
+                .flat_map(|&k| {
+                    let leader = poses[k];
+                    self.flips.iter().skip(1).map(move |f| leader.compose(f))
+                })
+                .take(o.particles - next.len())
+                .collect();
             let spread = o.spread * kernel;
-            let picks = systematic(&weights, o.particles - next.len(), rng);
-            next.extend(picks.iter().map(|&k| self.perturb(&poses[k], spread, rng)));
+            let picks = systematic(&weights, o.particles - next.len() - moved.len(), rng);
+            moved.extend(picks.iter().map(|&k| self.perturb(&poses[k], spread, rng)));
+            next.extend(
+                moved
+                    .into_par_iter()
+                    .map(|p| self.shift_to_votes(p, kernel * p.scale))
+                    .collect::<Vec<_>>(),
+            );
             poses = next;
+            if trace {
+                eprintln!("  moved {:.3}s", t1.elapsed().as_secs_f64());
+            }
         }
         Ok(FilterResult {
             pose: best.0,
@@ -497,4 +638,76 @@ fn median(values: &[f64]) -> f64 {
     let mut sorted = values.to_vec();
     sorted.sort_by(f64::total_cmp);
     sorted[sorted.len() / 2].max(f64::MIN_POSITIVE)
+}
+
+#[cfg(test)]
+mod diag {
+    use super::*;
+    use crate::synth::{RegistrationParams, asymmetric_object, registration};
+    use rand::SeedableRng;
+
+    #[test]
+    #[ignore]
+    fn diag_filter_initial() {
+        let mesh = asymmetric_object();
+        let (lo, hi) = crate::cloud::bounds_of(&mesh.mesh.vertices).unwrap();
+        let size = (hi - lo).norm();
+        for seed in 0..2 {
+            let scene = registration(&mesh, &RegistrationParams { inliers: 100, outliers: 1900, translation: 0.25 * size, seed, ..Default::default() }).unwrap();
+            let truth = scene.truth[0].pose;
+            let options = RegisterOptions { translation: true, seed, ..Default::default() };
+            let (ctx, _) = super::super::context(&scene.cloud, &mesh, &options).unwrap();
+            let (clo, chi) = ctx.translation_prior(&truth.rotation, 1.0);
+            let c = truth.to_scene(&ctx.centre);
+            println!("prior {clo} {chi} true centre {c} scene {} {}", ctx.lo, ctx.hi);
+            for cell in [0.03, 0.057, 0.08, 0.114, 0.17, 0.25] {
+                let index = crate::register::vote::VoteIndex::new(&scene.cloud.points, cell * size);
+                let t0 = std::time::Instant::now();
+                for _ in 0..100 {
+                    std::hint::black_box(ctx.vote(&index, &truth, 2));
+                }
+                println!("cell {cell}: {:.3} ms per vote", t0.elapsed().as_secs_f64() * 10.0);
+            }
+            let index = ctx.vote_index.as_ref().unwrap();
+            let t0 = std::time::Instant::now();
+            let v = ctx.vote(index, &truth, 3);
+            println!("vote at truth {:?} {:.4}s", v.iter().map(|(p, n)| ((p.translation - truth.translation).norm() / size, *n)).collect::<Vec<_>>(), t0.elapsed().as_secs_f64());
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let t0 = std::time::Instant::now();
+            let init = ctx.initial(&mut rng);
+            if seed == 0 { continue; }
+            println!("initial {:.3}s", t0.elapsed().as_secs_f64());
+            let close: Vec<_> = init.iter().enumerate().filter(|(_, p)| p.rotation.angle_to(&truth.rotation).to_degrees() < 20.0).map(|(i, p)| (i, p.rotation.angle_to(&truth.rotation).to_degrees() as i32, (100.0 * (p.translation - truth.translation).norm() / size) as i32)).collect();
+            println!("seed {seed}: close {close:?}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod diag2 {
+    use super::*;
+    use crate::synth::{RegistrationParams, asymmetric_object, registration};
+    use rand::SeedableRng;
+
+    #[test]
+    #[ignore]
+    fn diag_filter_run() {
+        let mesh = asymmetric_object();
+        let (lo, hi) = crate::cloud::bounds_of(&mesh.mesh.vertices).unwrap();
+        let size = (hi - lo).norm();
+        let steps: usize = std::env::var("STEPS").map_or(2, |s| s.parse().unwrap());
+        let init: usize = std::env::var("INIT").map_or(2000, |s| s.parse().unwrap());
+        let screen: usize = std::env::var("SCREEN").map_or(2000, |s| s.parse().unwrap());
+        for seed in 0..2 {
+            let scene = registration(&mesh, &RegistrationParams { inliers: 100, outliers: 1900, translation: 0.25 * size, seed, ..Default::default() }).unwrap();
+            let truth = scene.truth[0].pose;
+            let options = RegisterOptions { translation: true, seed, vote_steps: steps, initial_particles: init, screen: Some(screen), ..Default::default() };
+            let (ctx, _) = super::super::context(&scene.cloud, &mesh, &options).unwrap();
+            let mut rng = ChaCha8Rng::seed_from_u64(seed);
+            let t0 = std::time::Instant::now();
+            let r = ctx.run(&[], &mut rng, &crate::progress::Silent).unwrap();
+            println!("seed {seed}: {:.2}s rot {:.2} trans {:.2} % rounds {}", t0.elapsed().as_secs_f64(), r.pose.rotation.angle_to(&truth.rotation).to_degrees(), 100.0 * (r.pose.translation - truth.translation).norm() / size, r.rounds.len());
+            println!("truth {truth:?}");
+        }
+    }
 }
