@@ -136,6 +136,9 @@ pub struct RegisterOptions {
     /// π about the model's principal axes) join the next round, each round: a jump
     /// between the basins a nearly symmetric object leaves in the measurement.
     pub flip_moves: usize,
+    /// Share of the particles resampled within each other basin of the best particle
+    /// (the basins of its symmetry flips), by the basin's own weights, each round.
+    pub basin_share: f64,
     /// ICP steps of each such move.
     pub local_steps: usize,
     /// Most samples of the outlier primitive.
@@ -189,6 +192,7 @@ impl Default for RegisterOptions {
             local_moves: 8,
             local_steps: 3,
             flip_moves: 2,
+            basin_share: 0.1,
             max_outlier_samples: 200_000,
             prior_margin: 1.0,
             sample_spacing: 1.0 / 15.0,
@@ -220,6 +224,9 @@ impl RegisterOptions {
         }
         if !(self.kernel_shrink > 0.0 && self.kernel_shrink < 1.0) {
             return Err(Error::invalid("kernel_shrink must lie in (0, 1)"));
+        }
+        if !(0.0..=0.3).contains(&self.basin_share) {
+            return Err(Error::invalid("basin_share must lie in [0, 0.3]"));
         }
         if !(self.ess > 0.0 && self.ess <= 1.0) {
             return Err(Error::invalid("ess must lie in (0, 1]"));
@@ -312,6 +319,7 @@ impl RegisterOptions {
             "local_moves": self.local_moves,
             "local_steps": self.local_steps,
             "flip_moves": self.flip_moves,
+            "basin_share": self.basin_share,
             "prior_margin": self.prior_margin,
             "sample_spacing": self.sample_spacing,
             "icp": self.icp,
@@ -499,8 +507,12 @@ pub fn register(
         };
         let tries: Vec<Pose> = flips
             .iter()
-            .map(|f| {
-                let p = filtered.pose.compose(f);
+            .enumerate()
+            .map(|(k, f)| {
+                let p = match k.checked_sub(1).and_then(|b| filtered.basins.get(b).copied().flatten()) {
+                    Some(b) => b,
+                    None => filtered.pose.compose(f),
+                };
                 if options.icp {
                     icp::refine(mesh, &grid, &cloud.points, p, freedom, &settle).pose
                 } else {

@@ -49,6 +49,10 @@ pub struct FilterResult {
     pub kernel: f64,
     /// Per-round statistics.
     pub rounds: Vec<RoundStats>,
+    /// For each approximate symmetry flip `f` of the model (index ≥ 1 of
+    /// [`super::symmetry_flips`]), the best particle of the last round in the basin of
+    /// `pose ∘ f`, if any.
+    pub basins: Vec<Option<Pose>>,
 }
 
 /// What [`Context::measure`] returns for each pose.
@@ -399,6 +403,17 @@ impl Context<'_> {
             .collect()
     }
 
+    /// The basin of `pose` relative to `best`: the index of the flip `f` (0 = identity)
+    /// for which the rotation of `best ∘ f` is nearest `pose`'s.
+    fn basin(&self, best: &Pose, pose: &Pose) -> usize {
+        self.flips
+            .iter()
+            .map(|f| pose.rotation.angle_to(&(best.rotation * f.rotation)))
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            .map_or(0, |(k, _)| k)
+    }
+
     /// `pose`'s rotation and scale with the translations of the `peaks` best vote peaks
     /// over its translation prior (the model inside the scene box; votes within a bin of
     /// it count),
@@ -457,6 +472,7 @@ impl Context<'_> {
         let mut best = (Pose::identity(), f64::NEG_INFINITY);
         let mut stable = 0;
         let mut kernel = o.kernel_start * self.size;
+        let mut basins = vec![None; self.flips.len().saturating_sub(1)];
         for round in 0..o.max_rounds {
             kernel =
                 self.size * (o.kernel_start * o.kernel_shrink.powi(round as i32)).max(o.kernel_end);
@@ -478,6 +494,15 @@ impl Context<'_> {
             }
             let weights = tempered_weights(&score, o.ess);
             let ess = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
+            let mut order: Vec<usize> = (0..poses.len()).collect();
+            order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
+            // Each particle's basin: the flip f for which best ∘ f is nearest in rotation.
+            let labels: Vec<usize> = poses.iter().map(|p| self.basin(&best.0, p)).collect();
+            let mut leading = vec![None; self.flips.len()];
+            for &k in &order {
+                leading[labels[k]].get_or_insert(k);
+            }
+            basins = leading.iter().skip(1).map(|k| k.map(|k| poses[k])).collect();
             rounds.push(RoundStats {
                 kernel,
                 particles: poses.len(),
@@ -504,8 +529,6 @@ impl Context<'_> {
             // Keep the best unchanged, move the leaders downhill (a few trimmed-ICP steps at
             // the kernel width: the local optimum of the measurement for a fixed inlier
             // set), resample the rest (systematic) and move them at random.
-            let mut order: Vec<usize> = (0..poses.len()).collect();
-            order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
             let mut next = Vec::with_capacity(o.particles);
             next.push(poses[ib]);
             let icp = IcpOptions {
@@ -515,11 +538,25 @@ impl Context<'_> {
                 max_iterations: o.local_steps,
                 tolerance: 0.0,
             };
-            let leaders: Vec<Pose> = order
+            // The leaders, the best of every other basin, and the symmetry jumps of the
+            // leaders (turned by π about the model's principal axes), each moved downhill.
+            let mut leaders: Vec<Pose> = order
                 .iter()
                 .take(o.local_moves.min(o.particles.saturating_sub(1)))
                 .map(|&k| poses[k])
                 .collect();
+            for k in leading.iter().skip(1).flatten() {
+                if leaders.len() + 1 < o.particles && order[..o.local_moves.min(order.len())].iter().all(|j| j != k) {
+                    leaders.push(poses[*k]);
+                }
+            }
+            for &k in order.iter().take(o.flip_moves) {
+                for f in self.flips.iter().skip(1) {
+                    if leaders.len() + 1 < o.particles {
+                        leaders.push(poses[k].compose(f));
+                    }
+                }
+            }
             next.extend(
                 leaders
                     .par_iter()
@@ -531,20 +568,28 @@ impl Context<'_> {
             if trace {
                 eprintln!("  local {:.3}s", t1.elapsed().as_secs_f64());
             }
-            // Symmetry jumps: the leaders turned by π about the model's principal axes;
-            // then the resampled particles, moved at random.
-            let mut moved: Vec<Pose> = order
-                .iter()
-                .take(o.flip_moves)
-                .flat_map(|&k| {
-                    let leader = poses[k];
-                    self.flips.iter().skip(1).map(move |f| leader.compose(f))
-                })
-                .take(o.particles - next.len())
-                .collect();
             let spread = o.spread * kernel;
-            let picks = systematic(&weights, o.particles - next.len() - moved.len(), rng);
-            moved.extend(picks.iter().map(|&k| self.perturb(&poses[k], spread, rng)));
+            // Every other basin keeps its quota (resampled by its own weights), so that
+            // a basin the coarse kernels disfavour is still explored when the fine ones
+            // can tell the basins apart; the rest is resampled from all.
+            let quota = (o.basin_share * o.particles as f64).round() as usize;
+            let mut picks = Vec::new();
+            for l in 1..self.flips.len() {
+                let members: Vec<usize> = (0..poses.len()).filter(|&i| labels[i] == l).collect();
+                let room = o.particles.saturating_sub(next.len() + picks.len());
+                if members.is_empty() || room == 0 {
+                    continue;
+                }
+                let member_scores: Vec<f64> = members.iter().map(|&i| score[i]).collect();
+                let w = tempered_weights(&member_scores, o.ess);
+                picks.extend(systematic(&w, quota.min(room), rng).into_iter().map(|k| members[k]));
+            }
+            let room = o.particles.saturating_sub(next.len() + picks.len());
+            picks.extend(systematic(&weights, room, rng));
+            let moved: Vec<Pose> = picks
+                .iter()
+                .map(|&k| self.perturb(&poses[k], spread, rng))
+                .collect();
             next.extend(
                 moved
                     .into_par_iter()
@@ -561,6 +606,7 @@ impl Context<'_> {
             score: best.1,
             kernel,
             rounds,
+            basins,
         })
     }
 }
@@ -708,6 +754,30 @@ mod diag2 {
             let r = ctx.run(&[], &mut rng, &crate::progress::Silent).unwrap();
             println!("seed {seed}: {:.2}s rot {:.2} trans {:.2} % rounds {}", t0.elapsed().as_secs_f64(), r.pose.rotation.angle_to(&truth.rotation).to_degrees(), 100.0 * (r.pose.translation - truth.translation).norm() / size, r.rounds.len());
             println!("truth {truth:?}");
+        }
+    }
+}
+
+#[cfg(test)]
+mod diag3 {
+    use super::*;
+    use crate::synth::{RegistrationParams, asymmetric_object, registration};
+
+    #[test]
+    #[ignore]
+    fn diag_truth_score() {
+        let mesh = asymmetric_object();
+        let (lo, hi) = crate::cloud::bounds_of(&mesh.mesh.vertices).unwrap();
+        let size = (hi - lo).norm();
+        let seed = 6;
+        let scene = registration(&mesh, &RegistrationParams { inliers: 100, outliers: 1900, translation: 0.25 * size, seed, ..Default::default() }).unwrap();
+        let truth = scene.truth[0].pose;
+        let wrong = Pose { rotation: UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(0.893106400818628, -0.13140797770422813, 0.1474701269012638, 0.4041601933444292)), translation: Vector3::new(0.11760227788622234, -0.34255263504268096, -0.2761385554036218), scale: 1.0 };
+        println!("wrong vs truth {:.1} deg", wrong.rotation.angle_to(&truth.rotation).to_degrees());
+        let options = RegisterOptions { translation: true, seed, ..Default::default() };
+        for k in [0.08, 0.02, 0.015, 0.01, 0.007] {
+            let (sc, ex) = crate::register::score_poses(&scene.cloud, &mesh, &options, &[], vec![truth, wrong], k * size).unwrap();
+            println!("kernel {k}: truth {:.4} wrong {:.4} existence {ex:?}", sc[0], sc[1]);
         }
     }
 }
