@@ -116,6 +116,9 @@ fn correspondences(
                 return None;
             }
             let local = pose.to_local(y);
+            if grid.box_distance(&local) * pose.scale > tau {
+                return None;
+            }
             // The grid value is within one cell of the truth: skip points surely too far.
             if (grid.distance(&local) - slack) * pose.scale > tau {
                 return None;

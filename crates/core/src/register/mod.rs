@@ -2,7 +2,20 @@
 //!
 //! The particles are poses of one mesh: rotations only (about the mesh's local origin,
 //! the translation fixed), or rotations and translations, optionally with a uniform
-//! scale. Every round:
+//! scale.
+//!
+//! **First population.** Rotation only: prior draws. With translation search, the 6-D
+//! prior is far too large to sample a close pose from (thesis §6.3.3), so translations
+//! are not drawn but **voted** ([`vote`]): for each of
+//! [`RegisterOptions::screen_draws`] prior rotations (and scales), every (cloud point,
+//! model sample) pair votes for the translation that would put the sample on the
+//! point; the object's points pile their votes on the true translation while the
+//! outliers' votes spread out. Each rotation becomes [`RegisterOptions::vote_peaks`]
+//! particles, one per vote peak; the [`RegisterOptions::vote_keep`] with the most votes,
+//! their translations refined at point level, form the first population. The search
+//! is then in effect over rotations only, where the filter works.
+//!
+//! **Every round:**
 //!
 //! 1. the particles form the candidate set, together with an explicit **outlier
 //!    primitive** (points uniformly filling the scene's bounding box,
@@ -11,13 +24,24 @@
 //!    them and [`crate::solve::solve`] gives every particle's existence probability;
 //! 3. each particle is measured by the binary chamfer decrease when it is added to the
 //!    background (outlier primitive + found objects): `Δ_i = Σ_y max(0, b(y) − d_i(y))
-//!    − w_prim g_i` (squared scene units), the "exp(−Δloss)" weighting. Existence alone is
-//!    a poor weight: the existence model keeps one of two near-identical particles and
-//!    zeroes the other, which would collapse the population onto one survivor;
+//!    − w_prim g_i` (squared scene units, the sum over all cloud points), the
+//!    "exp(−Δloss)" weighting. Existence alone is a poor weight: the existence model
+//!    keeps one of two near-identical particles and zeroes the other, which would
+//!    collapse the population onto one survivor;
 //! 4. weights `∝ exp(Δ_i / T)`, with `T` set so that the effective sample size is a fixed
-//!    share of the population ([`RegisterOptions::ess`]); systematic resampling (the best
-//!    particle is kept as is), then a random move on SO(3) (exponential map of a Gaussian
+//!    share of the population ([`RegisterOptions::ess`]); the best particle is kept as
+//!    is, the leaders are moved downhill by a few trimmed-ICP steps, the rest is
+//!    resampled (systematic) and moved at random on SO(3) (exponential map of a Gaussian
 //!    axis-angle vector), ℝ³ (Gaussian) and log-scale (Gaussian).
+//!
+//! **Symmetry basins.** A nearly symmetric object leaves several basins in the
+//! measurement: the pose turned by π about a principal axis of the model
+//! ([`symmetry_flips`]) explains almost as many points, and at the coarse kernels of the
+//! first rounds sometimes more. Each round the leaders' flips join the population, and
+//! every basin of the best particle's flips keeps a share of the particles
+//! ([`RegisterOptions::basin_share`]), resampled by its own weights, so that each basin
+//! is refined until the fine kernels tell them apart; the best particle of each basin
+//! is a candidate of the final choice.
 //!
 //! The kernel width — the outlier primitive's expected nearest-sample distance, i.e. how
 //! close a particle must come to a point to explain it better than "outlier" — starts at
@@ -26,8 +50,10 @@
 //! filter stops when the best pose has been stable for
 //! [`RegisterOptions::settle_rounds`] rounds at the final kernel.
 //!
-//! The best particle is then refined by trimmed ICP against the exact mesh surface
-//! ([`icp::refine`]), so the answer is precise, not just particle-close. Its existence is
+//! The best particle and the best of every other basin (or, where a basin is empty, the
+//! best particle's flip) are then settled by trimmed ICP and measured; the best is
+//! refined by trimmed ICP against the exact mesh surface ([`icp::refine`]), so the
+//! answer is precise, not just particle-close. Its existence is
 //! decided by a last chamfer solve over {outlier primitive, found objects, new pose};
 //! several objects are found one after another, each search conditioned on those already
 //! found (they join the background), until a new one does not exist
@@ -93,10 +119,7 @@ pub struct RegisterOptions {
     pub vote_bin: f64,
     /// Spacing of the model samples that vote, fraction of the model size.
     pub vote_spacing: f64,
-    /// With translation search: mean-shift steps on the translation votes
-    /// ([`vote::mean_shift`], radius = the round's kernel) that move every new particle's
-    /// translation to the local vote peak for its rotation, each round; 0 = none.
-    pub vote_steps: usize,
+
     /// Particles of later rounds.
     pub particles: usize,
     /// Round limit per object.
@@ -173,9 +196,8 @@ impl Default for RegisterOptions {
             screen_points: 500,
             vote_peaks: 2,
             vote_keep: 400,
-            vote_bin: 0.065,
+            vote_bin: 0.08,
             vote_spacing: 0.04,
-            vote_steps: 2,
             particles: 200,
             max_rounds: 40,
             kernel_start: 0.08,
@@ -302,7 +324,6 @@ impl RegisterOptions {
             "vote_keep": self.vote_keep,
             "vote_bin": self.vote_bin,
             "vote_spacing": self.vote_spacing,
-            "vote_steps": self.vote_steps,
             "particles": self.particles,
             "max_rounds": self.max_rounds,
             "kernel_start": self.kernel_start,
@@ -417,7 +438,7 @@ fn context<'a>(
         .sqrt()
         .max(1e-9 * size);
     let flips = symmetry_flips(&fine, &pivot);
-    let voting = options.translation && (options.vote_peaks > 0 || options.vote_steps > 0);
+    let voting = options.translation && options.vote_peaks > 0;
     let (vote_index, vote_samples) = if voting {
         (
             Some(vote::VoteIndex::new(
@@ -502,7 +523,7 @@ pub fn register(
             start_distance: options.kernel_start * size * scale,
             min_distance: kernel,
             shrink: 0.8,
-            max_iterations: std::env::var("SETTLE").map_or(15, |s| s.parse().unwrap()),
+            max_iterations: 15,
             tolerance: 1e-6 * size * scale,
         };
         let tries: Vec<Pose> = flips
@@ -531,11 +552,7 @@ pub fn register(
         let pick = (0..tries.len())
             .max_by(|&a, &b| m.score[a].total_cmp(&m.score[b]).then(b.cmp(&a)))
             .unwrap_or(0);
-        if std::env::var_os("PRIMFIT_TRACE").is_some() {
-            for (t, sc) in tries.iter().zip(&m.score) {
-                eprintln!("try {t:?} score {sc:.4}");
-            }
-        }
+
         let chosen = tries[pick];
         let refined = icp::refine(
             mesh,

@@ -185,15 +185,29 @@ impl Context<'_> {
                     .fold(outlier.surface_distance(0, y), f64::min)
             })
             .collect();
-        let gain: Vec<f64> = (0..n)
-            .into_par_iter()
-            .map(|i| {
+        // (A point farther than √b(y) from the particle's bounding box gains nothing.)
+        let gain: Vec<f64> = particles
+            .set
+            .poses
+            .par_iter()
+            .enumerate()
+            .map(|(i, pose)| {
                 let (c, r) = particles.bounding_ball(i);
                 self.cloud
                     .iter()
                     .zip(&cost)
-                    .filter(|(y, b)| (*y - c).norm() <= r + b.sqrt())
-                    .map(|(y, b)| (b - particles.surface_distance(i, y)).max(0.0))
+                    .filter_map(|(y, &b)| {
+                        if (y - c).norm_squared() > (r + b.sqrt()).powi(2) {
+                            return None;
+                        }
+                        let local = pose.to_local(y);
+                        let reach = b.sqrt() / pose.scale;
+                        if self.grid.box_distance(&local) >= reach {
+                            return None;
+                        }
+                        let d = self.grid.distance(&local) * pose.scale;
+                        Some((b - d * d).max(0.0))
+                    })
                     .sum()
             })
             .collect();
@@ -385,8 +399,8 @@ impl Context<'_> {
             .par_iter()
             .map(|(p, _)| {
                 let offsets = self.vote_offsets(p);
-                let t = fine_peak(index, &offsets, p.translation, 1.5 * c, 0.25 * c);
-                let t = mean_shift(index, &offsets, t, 0.25 * c, o.vote_steps.max(1)).translation;
+                let t = fine_peak(index, &offsets, p.translation, c, 0.25 * c);
+                let t = mean_shift(index, &offsets, t, 0.25 * c, 2).translation;
                 Pose {
                     translation: t,
                     ..*p
@@ -436,24 +450,6 @@ impl Context<'_> {
             .collect()
     }
 
-    /// `pose` with its translation moved to the local peak of the translation votes for
-    /// its rotation and scale ([`RegisterOptions::vote_steps`] mean-shift steps of radius
-    /// `radius`, scene units); `pose` itself without voting.
-    fn shift_to_votes(&self, pose: Pose, radius: f64) -> Pose {
-        let Some(index) = self.vote_index.as_ref() else {
-            return pose;
-        };
-        if self.options.vote_steps == 0 {
-            return pose;
-        }
-        let offsets = self.vote_offsets(&pose);
-        let peak = mean_shift(index, &offsets, pose.translation, radius, self.options.vote_steps);
-        Pose {
-            translation: peak.translation,
-            ..pose
-        }
-    }
-
     /// Runs the filter for one more object, given those already `found`.
     pub fn run(
         &self,
@@ -462,12 +458,7 @@ impl Context<'_> {
         progress: &dyn Progress,
     ) -> Result<FilterResult> {
         let o = self.options;
-        let trace = std::env::var_os("PRIMFIT_TRACE").is_some();
-        let t0 = std::time::Instant::now();
         let mut poses = self.initial(rng);
-        if trace {
-            eprintln!("initial {:.3}s", t0.elapsed().as_secs_f64());
-        }
         let mut rounds = Vec::new();
         let mut best = (Pose::identity(), f64::NEG_INFINITY);
         let mut stable = 0;
@@ -476,12 +467,8 @@ impl Context<'_> {
         for round in 0..o.max_rounds {
             kernel =
                 self.size * (o.kernel_start * o.kernel_shrink.powi(round as i32)).max(o.kernel_end);
-            let t1 = std::time::Instant::now();
             let Measurement { score, existence } =
                 self.measure(found, poses.clone(), kernel, o.search_support, false, rng)?;
-            if trace {
-                eprintln!("round {round} measure {} particles {:.3}s", poses.len(), t1.elapsed().as_secs_f64());
-            }
             let (ib, &sb) = score
                 .iter()
                 .enumerate()
@@ -489,9 +476,6 @@ impl Context<'_> {
                 .expect("at least one particle");
             let previous = best.0;
             best = (poses[ib], sb);
-            if trace {
-                eprintln!("  best {:?} score {sb:.4}", best.0);
-            }
             let weights = tempered_weights(&score, o.ess);
             let ess = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
             let mut order: Vec<usize> = (0..poses.len()).collect();
@@ -565,9 +549,6 @@ impl Context<'_> {
                     })
                     .collect::<Vec<_>>(),
             );
-            if trace {
-                eprintln!("  local {:.3}s", t1.elapsed().as_secs_f64());
-            }
             let spread = o.spread * kernel;
             // Every other basin keeps its quota (resampled by its own weights), so that
             // a basin the coarse kernels disfavour is still explored when the fine ones
@@ -586,20 +567,8 @@ impl Context<'_> {
             }
             let room = o.particles.saturating_sub(next.len() + picks.len());
             picks.extend(systematic(&weights, room, rng));
-            let moved: Vec<Pose> = picks
-                .iter()
-                .map(|&k| self.perturb(&poses[k], spread, rng))
-                .collect();
-            next.extend(
-                moved
-                    .into_par_iter()
-                    .map(|p| self.shift_to_votes(p, kernel * p.scale))
-                    .collect::<Vec<_>>(),
-            );
+            next.extend(picks.iter().map(|&k| self.perturb(&poses[k], spread, rng)));
             poses = next;
-            if trace {
-                eprintln!("  moved {:.3}s", t1.elapsed().as_secs_f64());
-            }
         }
         Ok(FilterResult {
             pose: best.0,
@@ -686,98 +655,3 @@ fn median(values: &[f64]) -> f64 {
     sorted[sorted.len() / 2].max(f64::MIN_POSITIVE)
 }
 
-#[cfg(test)]
-mod diag {
-    use super::*;
-    use crate::synth::{RegistrationParams, asymmetric_object, registration};
-    use rand::SeedableRng;
-
-    #[test]
-    #[ignore]
-    fn diag_filter_initial() {
-        let mesh = asymmetric_object();
-        let (lo, hi) = crate::cloud::bounds_of(&mesh.mesh.vertices).unwrap();
-        let size = (hi - lo).norm();
-        for seed in 0..2 {
-            let scene = registration(&mesh, &RegistrationParams { inliers: 100, outliers: 1900, translation: 0.25 * size, seed, ..Default::default() }).unwrap();
-            let truth = scene.truth[0].pose;
-            let options = RegisterOptions { translation: true, seed, ..Default::default() };
-            let (ctx, _) = super::super::context(&scene.cloud, &mesh, &options).unwrap();
-            let (clo, chi) = ctx.translation_prior(&truth.rotation, 1.0);
-            let c = truth.to_scene(&ctx.centre);
-            println!("prior {clo} {chi} true centre {c} scene {} {}", ctx.lo, ctx.hi);
-            for cell in [0.03, 0.057, 0.08, 0.114, 0.17, 0.25] {
-                let index = crate::register::vote::VoteIndex::new(&scene.cloud.points, cell * size);
-                let t0 = std::time::Instant::now();
-                for _ in 0..100 {
-                    std::hint::black_box(ctx.vote(&index, &truth, 2));
-                }
-                println!("cell {cell}: {:.3} ms per vote", t0.elapsed().as_secs_f64() * 10.0);
-            }
-            let index = ctx.vote_index.as_ref().unwrap();
-            let t0 = std::time::Instant::now();
-            let v = ctx.vote(index, &truth, 3);
-            println!("vote at truth {:?} {:.4}s", v.iter().map(|(p, n)| ((p.translation - truth.translation).norm() / size, *n)).collect::<Vec<_>>(), t0.elapsed().as_secs_f64());
-            let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let t0 = std::time::Instant::now();
-            let init = ctx.initial(&mut rng);
-            if seed == 0 { continue; }
-            println!("initial {:.3}s", t0.elapsed().as_secs_f64());
-            let close: Vec<_> = init.iter().enumerate().filter(|(_, p)| p.rotation.angle_to(&truth.rotation).to_degrees() < 20.0).map(|(i, p)| (i, p.rotation.angle_to(&truth.rotation).to_degrees() as i32, (100.0 * (p.translation - truth.translation).norm() / size) as i32)).collect();
-            println!("seed {seed}: close {close:?}");
-        }
-    }
-}
-
-#[cfg(test)]
-mod diag2 {
-    use super::*;
-    use crate::synth::{RegistrationParams, asymmetric_object, registration};
-    use rand::SeedableRng;
-
-    #[test]
-    #[ignore]
-    fn diag_filter_run() {
-        let mesh = asymmetric_object();
-        let (lo, hi) = crate::cloud::bounds_of(&mesh.mesh.vertices).unwrap();
-        let size = (hi - lo).norm();
-        let steps: usize = std::env::var("STEPS").map_or(2, |s| s.parse().unwrap());
-        let init: usize = std::env::var("INIT").map_or(2000, |s| s.parse().unwrap());
-        let screen: usize = std::env::var("SCREEN").map_or(2000, |s| s.parse().unwrap());
-        for seed in 0..2 {
-            let scene = registration(&mesh, &RegistrationParams { inliers: 100, outliers: 1900, translation: 0.25 * size, seed, ..Default::default() }).unwrap();
-            let truth = scene.truth[0].pose;
-            let options = RegisterOptions { translation: true, seed, vote_steps: steps, initial_particles: init, screen: Some(screen), ..Default::default() };
-            let (ctx, _) = super::super::context(&scene.cloud, &mesh, &options).unwrap();
-            let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let t0 = std::time::Instant::now();
-            let r = ctx.run(&[], &mut rng, &crate::progress::Silent).unwrap();
-            println!("seed {seed}: {:.2}s rot {:.2} trans {:.2} % rounds {}", t0.elapsed().as_secs_f64(), r.pose.rotation.angle_to(&truth.rotation).to_degrees(), 100.0 * (r.pose.translation - truth.translation).norm() / size, r.rounds.len());
-            println!("truth {truth:?}");
-        }
-    }
-}
-
-#[cfg(test)]
-mod diag3 {
-    use super::*;
-    use crate::synth::{RegistrationParams, asymmetric_object, registration};
-
-    #[test]
-    #[ignore]
-    fn diag_truth_score() {
-        let mesh = asymmetric_object();
-        let (lo, hi) = crate::cloud::bounds_of(&mesh.mesh.vertices).unwrap();
-        let size = (hi - lo).norm();
-        let seed = 6;
-        let scene = registration(&mesh, &RegistrationParams { inliers: 100, outliers: 1900, translation: 0.25 * size, seed, ..Default::default() }).unwrap();
-        let truth = scene.truth[0].pose;
-        let wrong = Pose { rotation: UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(0.893106400818628, -0.13140797770422813, 0.1474701269012638, 0.4041601933444292)), translation: Vector3::new(0.11760227788622234, -0.34255263504268096, -0.2761385554036218), scale: 1.0 };
-        println!("wrong vs truth {:.1} deg", wrong.rotation.angle_to(&truth.rotation).to_degrees());
-        let options = RegisterOptions { translation: true, seed, ..Default::default() };
-        for k in [0.08, 0.02, 0.015, 0.01, 0.007] {
-            let (sc, ex) = crate::register::score_poses(&scene.cloud, &mesh, &options, &[], vec![truth, wrong], k * size).unwrap();
-            println!("kernel {k}: truth {:.4} wrong {:.4} existence {ex:?}", sc[0], sc[1]);
-        }
-    }
-}
