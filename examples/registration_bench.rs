@@ -107,7 +107,8 @@ fn main() {
                     .map_or(d.translation_spread, |s| s.parse().expect("factor")),
                 screen: get("--screen").map(|s| s.parse().expect("count")),
                 vote_peaks: get("--vote-peaks").map_or(d.vote_peaks, |s| s.parse().expect("count")),
-                basin_share: get("--basin-share").map_or(d.basin_share, |s| s.parse().expect("share")),
+                basin_share: get("--basin-share")
+                    .map_or(d.basin_share, |s| s.parse().expect("share")),
                 flip_moves: get("--flip-moves").map_or(d.flip_moves, |s| s.parse().expect("count")),
                 vote_keep: get("--vote-keep").map_or(d.vote_keep, |s| s.parse().expect("count")),
                 vote_bin: get("--vote-bin").map_or(d.vote_bin, |s| s.parse().expect("fraction")),

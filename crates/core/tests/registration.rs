@@ -117,14 +117,15 @@ fn full_pose_at_95_percent_outliers() {
     check(&asymmetric_object(), 1900, true, 0..5, 5);
 }
 
-/// `--scale`: a scene whose object is scaled by a known factor; the scale is searched in
-/// (0.5, 2) together with the full pose. Bounds: scale within 1 % of the truth,
-/// rotation < 3°, translation < 1 % of the scaled model's size.
+/// `--scale`: scenes whose object is scaled by a known factor (50, 80 and 90 %
+/// outliers); the scale is searched in (0.5, 2) together with the full pose. Bounds:
+/// scale within 1 % of the truth, rotation < 3°, translation < 1 % of the scaled
+/// model's size.
 #[test]
 fn scale_is_recovered_with_the_full_pose() {
     let mesh = asymmetric_object();
     let size = model_size(&mesh);
-    for (seed, outliers, scale) in [(0, 100, 1.4), (1, 400, 0.7), (2, 1900, 1.25)] {
+    for (seed, outliers, scale) in [(0, 100, 1.4), (1, 400, 0.7), (2, 900, 1.25)] {
         let scene = registration(
             &mesh,
             &RegistrationParams {
@@ -157,7 +158,11 @@ fn scale_is_recovered_with_the_full_pose() {
             100.0 * trans,
             r.seconds
         );
-        assert!(scale_err < 0.01, "seed {seed}: scale {} vs {scale}", found.scale);
+        assert!(
+            scale_err < 0.01,
+            "seed {seed}: scale {} vs {scale}",
+            found.scale
+        );
         assert!(rot < MAX_ROTATION_DEG && trans < MAX_TRANSLATION_REL);
     }
 }
@@ -189,7 +194,11 @@ fn scale_is_recovered_with_the_rotation() {
     let found = r.objects[0].primitive.pose;
     let (rot, _) = errors(&found, &scene.truth[0].pose, size * scale);
     println!("found scale {:.4}, rotation {rot:.2}°", found.scale);
-    assert!((found.scale - scale).abs() / scale < 0.01, "scale {}", found.scale);
+    assert!(
+        (found.scale - scale).abs() / scale < 0.01,
+        "scale {}",
+        found.scale
+    );
     assert!(rot < MAX_ROTATION_DEG);
     assert_eq!(found.translation, scene.truth[0].pose.translation);
 }

@@ -300,11 +300,12 @@ impl RegisterOptions {
 
     /// Prior draws screened for the first population (resolves `screen: None`).
     pub fn screen_draws(&self) -> usize {
-        self.screen.unwrap_or(if self.translation && self.vote_peaks == 0 {
-            8 * self.initial_particles
-        } else {
-            self.initial_particles
-        })
+        self.screen
+            .unwrap_or(if self.translation && self.vote_peaks == 0 {
+                8 * self.initial_particles
+            } else {
+                self.initial_particles
+            })
     }
 
     /// The options as JSON (the `settings` of `result.json`).
@@ -441,10 +442,7 @@ fn context<'a>(
     let voting = options.translation && options.vote_peaks > 0;
     let (vote_index, vote_samples) = if voting {
         (
-            Some(vote::VoteIndex::new(
-                &cloud.points,
-                options.vote_bin * size,
-            )),
+            Some(vote::VoteIndex::new(&cloud.points, options.vote_bin * size)),
             shape
                 .sample_surface(options.vote_spacing * size)
                 .iter()
@@ -525,12 +523,16 @@ pub fn register(
             shrink: 0.8,
             max_iterations: 15,
             tolerance: 1e-6 * size * scale,
+            scale_range: options.scale,
         };
         let tries: Vec<Pose> = flips
             .iter()
             .enumerate()
             .map(|(k, f)| {
-                let p = match k.checked_sub(1).and_then(|b| filtered.basins.get(b).copied().flatten()) {
+                let p = match k
+                    .checked_sub(1)
+                    .and_then(|b| filtered.basins.get(b).copied().flatten())
+                {
                     Some(b) => b,
                     None => filtered.pose.compose(f),
                 };
@@ -573,6 +575,7 @@ pub fn register(
                 shrink: 0.8,
                 max_iterations: if options.icp { 60 } else { 0 },
                 tolerance: 1e-6 * size * largest_scale,
+                scale_range: options.scale,
             },
         );
         // Existence of the new object next to the outlier primitive and those found.

@@ -13,7 +13,7 @@ use rayon::prelude::*;
 use super::RegisterOptions;
 use super::geometry::{Chain, DistanceGrid, OutlierBox, Particles};
 use super::icp::{Freedom, IcpOptions, refine};
-use super::vote::{VoteIndex, fine_peak, mean_shift, vote_translation};
+use super::vote::{VoteIndex, refine_peak, vote_translation};
 use crate::atlas::MeshShape;
 use crate::chamfer::{CandidateGeometry, ChamferOptions, Coefficients, PointModel};
 use crate::lattice::Template;
@@ -211,8 +211,15 @@ impl Context<'_> {
                     .sum()
             })
             .collect();
+        // With a scale, clutter gains in proportion to the surface (scale²): each particle
+        // is charged the clutter gain of its own area beyond that of the model at scale 1
+        // (which the calibrated weight prices), or larger poses would win on clutter.
+        let clutter = self.price(kernel2, 0.0);
         let score = (0..n)
-            .map(|i| gain[i] - weight * coeffs.g[offset + i])
+            .map(|i| {
+                let s = particles.set.poses[i].scale;
+                gain[i] - weight * coeffs.g[offset + i] - clutter * (s * s - 1.0)
+            })
             .collect();
         let existence = if polish {
             solution
@@ -237,9 +244,10 @@ impl Context<'_> {
     }
 
     /// What an object must gain to exist: the point-term gain expected from uniform
-    /// clutter around its surface plus that of `support` perfectly explained points. Clutter of density ρ = J / V (the scene box) gains
-    /// `(4/3) ρ A δ³` on a surface of area `A` for the kernel `δ² = kernel2`. The
-    /// calibrated primitive weight makes a typical particle (median `g`) pay exactly this.
+    /// clutter around its surface plus that of `support` perfectly explained points.
+    /// Clutter of density ρ = J / V (the scene box) gains `(4/3) ρ A δ³` on a surface of
+    /// area `A` (the model's, at scale 1) for the kernel `δ² = kernel2`. The calibrated
+    /// primitive weight makes a typical particle (median `g`) pay exactly this.
     fn price(&self, kernel2: f64, support: f64) -> f64 {
         let volume = (self.hi - self.lo)
             .iter()
@@ -307,19 +315,18 @@ impl Context<'_> {
     /// A random move of `pose`: rotation by the exponential map of a Gaussian axis-angle
     /// vector (σ = `spread / lever` rad) about the model centre (about the origin when
     /// the translation is fixed); Gaussian translation (σ = `spread`); log-normal scale
-    /// (σ = `spread / lever`).
+    /// (σ = `spread / lever`), clamped to [`RegisterOptions::scale`].
     fn perturb(&self, pose: &Pose, spread: f64, rng: &mut ChaCha8Rng) -> Pose {
         let o = self.options;
         let sigma = spread / (self.lever * pose.scale);
         let omega = gaussian3(rng) * sigma;
         let rotation = UnitQuaternion::from_scaled_axis(omega) * pose.rotation;
-        let scale = if o.scale.is_some() {
-            {
+        let scale = match o.scale {
+            Some((lo, hi)) => {
                 let z: f64 = StandardNormal.sample(rng);
-                pose.scale * (sigma * z).exp()
+                (pose.scale * (sigma * z).exp()).clamp(lo, hi)
             }
-        } else {
-            pose.scale
+            None => pose.scale,
         };
         let translation = if o.translation {
             let centre = pose.to_scene(&self.centre);
@@ -375,17 +382,54 @@ impl Context<'_> {
     }
 
     /// The first population with translation votes: [`RegisterOptions::screen_draws`]
-    /// prior rotations (and scales), each with the translations of its
+    /// prior rotations (with a scale range, each at stratified scales across the range,
+    /// at most a factor 1.25 apart), each with the translations of its
     /// [`RegisterOptions::vote_peaks`] best vote peaks over the translation prior
     /// ([`Context::vote`], one grid cell precise); the [`RegisterOptions::vote_keep`]
-    /// candidates with the most votes, each translation refined at point level.
+    /// candidates with the most votes above clutter per unit model area, each
+    /// translation refined at point level
+    /// ([`refine_peak`]).
     fn initial_by_vote(&self, index: &VoteIndex, rng: &mut ChaCha8Rng) -> Vec<Pose> {
         let o = self.options;
         let draws = o.screen_draws().max(1);
         let seeds: Vec<Pose> = (0..draws).map(|_| self.prior(rng)).collect();
-        let mut voted: Vec<(Pose, f64)> = seeds
+        // With a scale range, every rotation votes at stratified scales (ratio ≤ 1.25
+        // apart: a scale that far off still piles the object's votes within one cell).
+        let levels = match o.scale {
+            Some((lo, hi)) if hi > lo => ((hi / lo).ln() / 1.25f64.ln()).ceil().max(1.0) as usize,
+            _ => 1,
+        };
+        let jitter: Vec<f64> = (0..draws).map(|_| rng.random::<f64>()).collect();
+        let tries: Vec<Pose> = seeds
+            .iter()
+            .zip(&jitter)
+            .flat_map(|(p, u)| {
+                (0..levels).map(move |k| match o.scale {
+                    Some((lo, hi)) if levels > 1 => Pose {
+                        scale: lo * (hi / lo).powf((k as f64 + u) / levels as f64),
+                        ..*p
+                    },
+                    _ => *p,
+                })
+            })
+            .collect();
+        // Votes above what uniform clutter would give a peak window (samples × cloud
+        // density × window volume), per unit of model area (× scale²): a small model
+        // over the object's dense points gathers as many raw votes as the right one.
+        let volume = (self.hi - self.lo)
+            .iter()
+            .map(|e| e.max(1e-12))
+            .product::<f64>();
+        let clutter = self.vote_samples.len() as f64 * self.cloud.len() as f64 / volume
+            * (3.0 * index.cell()).powi(3);
+        let mut voted: Vec<(Pose, f64)> = tries
             .par_iter()
-            .map(|p| self.vote(index, p, o.vote_peaks))
+            .map(|p| {
+                self.vote(index, p, o.vote_peaks)
+                    .into_iter()
+                    .map(|(q, v)| (q, (v - clutter) * q.scale * q.scale))
+                    .collect::<Vec<_>>()
+            })
             .collect::<Vec<_>>()
             .concat();
         if voted.is_empty() {
@@ -394,17 +438,11 @@ impl Context<'_> {
         // Stable: ties keep the draw order.
         voted.sort_by(|a, b| b.1.total_cmp(&a.1));
         voted.truncate(o.vote_keep);
-        let c = index.cell();
         voted
             .par_iter()
-            .map(|(p, _)| {
-                let offsets = self.vote_offsets(p);
-                let t = fine_peak(index, &offsets, p.translation, c, 0.25 * c);
-                let t = mean_shift(index, &offsets, t, 0.25 * c, 2).translation;
-                Pose {
-                    translation: t,
-                    ..*p
-                }
+            .map(|(p, _)| Pose {
+                translation: refine_peak(index, &self.vote_offsets(p), p.translation, 2),
+                ..*p
             })
             .collect()
     }
@@ -486,7 +524,11 @@ impl Context<'_> {
             for &k in &order {
                 leading[labels[k]].get_or_insert(k);
             }
-            basins = leading.iter().skip(1).map(|k| k.map(|k| poses[k])).collect();
+            basins = leading
+                .iter()
+                .skip(1)
+                .map(|k| k.map(|k| poses[k]))
+                .collect();
             rounds.push(RoundStats {
                 kernel,
                 particles: poses.len(),
@@ -521,6 +563,7 @@ impl Context<'_> {
                 shrink: 1.0,
                 max_iterations: o.local_steps,
                 tolerance: 0.0,
+                scale_range: o.scale,
             };
             // The leaders, the best of every other basin, and the symmetry jumps of the
             // leaders (turned by π about the model's principal axes), each moved downhill.
@@ -530,7 +573,11 @@ impl Context<'_> {
                 .map(|&k| poses[k])
                 .collect();
             for k in leading.iter().skip(1).flatten() {
-                if leaders.len() + 1 < o.particles && order[..o.local_moves.min(order.len())].iter().all(|j| j != k) {
+                if leaders.len() + 1 < o.particles
+                    && order[..o.local_moves.min(order.len())]
+                        .iter()
+                        .all(|j| j != k)
+                {
                     leaders.push(poses[*k]);
                 }
             }
@@ -563,7 +610,11 @@ impl Context<'_> {
                 }
                 let member_scores: Vec<f64> = members.iter().map(|&i| score[i]).collect();
                 let w = tempered_weights(&member_scores, o.ess);
-                picks.extend(systematic(&w, quota.min(room), rng).into_iter().map(|k| members[k]));
+                picks.extend(
+                    systematic(&w, quota.min(room), rng)
+                        .into_iter()
+                        .map(|k| members[k]),
+                );
             }
             let room = o.particles.saturating_sub(next.len() + picks.len());
             picks.extend(systematic(&weights, room, rng));
@@ -654,4 +705,3 @@ fn median(values: &[f64]) -> f64 {
     sorted.sort_by(f64::total_cmp);
     sorted[sorted.len() / 2].max(f64::MIN_POSITIVE)
 }
-
