@@ -373,9 +373,8 @@ pub fn fine_peak(
     half: f64,
     bin: f64,
 ) -> Vector3<f64> {
-    if !(bin.is_finite() && bin > 0.0 && half.is_finite() && half > 0.0)
-        || !centre.iter().all(|v| v.is_finite())
-    {
+    let valid = bin.is_finite() && bin > 0.0 && half.is_finite() && half > 0.0;
+    if !(valid && centre.iter().all(|v| v.is_finite())) {
         return centre;
     }
     let n = ((2.0 * half / bin).ceil() as usize).clamp(3, 64);
