@@ -387,8 +387,7 @@ impl Context<'_> {
     /// [`RegisterOptions::vote_peaks`] best vote peaks over the translation prior
     /// ([`Context::vote`], one grid cell precise); the [`RegisterOptions::vote_keep`]
     /// candidates with the most votes above clutter per unit model area, each
-    /// translation refined at point level
-    /// ([`refine_peak`]).
+    /// translation refined at point level ([`refine_peak`]).
     fn initial_by_vote(&self, index: &VoteIndex, rng: &mut ChaCha8Rng) -> Vec<Pose> {
         let o = self.options;
         let draws = o.screen_draws().max(1);
@@ -467,9 +466,9 @@ impl Context<'_> {
     }
 
     /// `pose`'s rotation and scale with the translations of the `peaks` best vote peaks
-    /// over its translation prior (the model inside the scene box; votes within a bin of
-    /// it count),
-    /// bins of [`RegisterOptions::vote_bin`] × the model size; with the votes.
+    /// over its translation prior (the model inside the scene box; votes within a cell
+    /// of it count), cells of [`RegisterOptions::vote_bin`] × the model size; with the
+    /// votes of each peak.
     pub fn vote(&self, index: &VoteIndex, pose: &Pose, peaks: usize) -> Vec<(Pose, f64)> {
         let (clo, chi) = self.translation_prior(&pose.rotation, pose.scale);
         let shift = pose.rotation * (self.centre.coords * pose.scale);
