@@ -6,7 +6,8 @@ mesh plus uniform outliers in a box around it), 20 seeds per outlier level, meas
 one run. Success: rotation error < 5° and translation error < 2 % of the model size
 (diagonal of the mesh's bounding box). Times are per registration, wall clock, on this
 machine (Open3D: features + RANSAC + ICP, without file I/O; primfit: the whole
-`register` call, including its distance-grid set-up).
+`register` call, including its distance-grid set-up), and the CPU time (user + system,
+all threads) over the same span, which other work on a shared machine disturbs less.
 
     python3 benches/registration_compare.py [--seeds 20] [--levels 0.5,0.8,0.9,0.95]
         [--model mesh.ply] [--no-rotation-only] [--keep DIR]
@@ -77,7 +78,7 @@ def run_open3d(args, scenes):
             truth = json.load(open(name + ".json"))
             size = truth["size"]
             target = o3d.io.read_point_cloud(name + ".ply")
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.process_time()
             o3d.utility.random.seed(seed)
             # The standard global-registration recipe (Open3D tutorial) with the voxel
             # size a fraction of the model size (--voxel; the scene's 100 inliers are
@@ -106,21 +107,36 @@ def run_open3d(args, scenes):
                 source, target, 0.4 * voxel, ransac.transformation,
                 o3d.pipelines.registration.TransformationEstimationPointToPoint())
             seconds = time.perf_counter() - t0
+            cpu = time.process_time() - c0
             t = np.asarray(icp.transformation)
             rot = rotation_angle_deg(t[:3, :3], np.asarray(truth["rotation_matrix"]))
             trans = float(np.linalg.norm(t[:3, 3] - np.asarray(truth["translation"]))) / size
             rows.append({"method": "open3d", "level": level, "seed": seed,
-                         "rotation_deg": rot, "translation_rel": trans, "seconds": seconds})
+                         "rotation_deg": rot, "translation_rel": trans, "seconds": seconds,
+                         "cpu_seconds": cpu})
             print(".", end="", file=sys.stderr, flush=True)
     print(file=sys.stderr)
     return rows
 
 
+def cpu(rows):
+    """Median CPU time (user + system, all threads) per registration, if measured."""
+    values = [r["cpu_seconds"] for r in rows if r.get("cpu_seconds") is not None]
+    return f"{statistics.median(values):.2f} s" if values else "–"
+
+
+def load():
+    try:
+        return open("/proc/loadavg").read().split()[0]
+    except OSError:
+        return "?"
+
+
 def table(title, rows):
     print(f"\n{title}")
     print("| outliers | success | median rotation error | median translation error | "
-          "median time | mean time |")
-    print("|---:|---:|---:|---:|---:|---:|")
+          "median time | mean time | max time | median CPU time |")
+    print("|---:|---:|---:|---:|---:|---:|---:|---:|")
     for level in sorted({r["level"] for r in rows}):
         rs = [r for r in rows if r["level"] == level]
         ok = sum(r["rotation_deg"] < 5.0 and r["translation_rel"] < 0.02 for r in rs)
@@ -128,7 +144,8 @@ def table(title, rows):
               f"{statistics.median(r['rotation_deg'] for r in rs):.2f}° | "
               f"{100 * statistics.median(r['translation_rel'] for r in rs):.2f} % | "
               f"{statistics.median(r['seconds'] for r in rs):.2f} s | "
-              f"{statistics.mean(r['seconds'] for r in rs):.2f} s |")
+              f"{statistics.mean(r['seconds'] for r in rs):.2f} s | "
+              f"{max(r['seconds'] for r in rs):.2f} s | {cpu(rs)} |")
 
 
 def main():
@@ -145,6 +162,7 @@ def main():
     args = ap.parse_args()
     scenes = args.keep or tempfile.mkdtemp(prefix="primfit-registration-")
     print(f"scenes in {scenes}; {os.cpu_count()} CPUs", file=sys.stderr)
+    print(f"load average (1 min) at start: {load()}")
     if args.open3d_only and args.keep:
         table(f"Open3D, voxel {args.voxel}", run_open3d(args, scenes))
         return
@@ -156,6 +174,7 @@ def main():
     if not args.no_rotation_only:
         rot = run_primfit(args, scenes, rotation_only=True)
         table("primfit register (rotation only, translation known), for reference", rot)
+    print(f"\nload average (1 min) at the end: {load()}")
 
 
 if __name__ == "__main__":

@@ -96,6 +96,8 @@ fn main() {
                 particles: get("--particles").map_or(d.particles, |s| s.parse().expect("count")),
                 kernel_start: get("--kernel-start")
                     .map_or(d.kernel_start, |s| s.parse().expect("fraction")),
+                kernel_shrink: get("--kernel-shrink")
+                    .map_or(d.kernel_shrink, |s| s.parse().expect("factor")),
                 kernel_end: get("--kernel-end")
                     .map_or(d.kernel_end, |s| s.parse().expect("fraction")),
                 ess: get("--ess").map_or(d.ess, |s| s.parse().expect("share")),
@@ -104,11 +106,21 @@ fn main() {
                 translation_spread: get("--tspread")
                     .map_or(d.translation_spread, |s| s.parse().expect("factor")),
                 screen: get("--screen").map(|s| s.parse().expect("count")),
+                vote_peaks: get("--vote-peaks").map_or(d.vote_peaks, |s| s.parse().expect("count")),
+                basin_share: get("--basin-share")
+                    .map_or(d.basin_share, |s| s.parse().expect("share")),
+                flip_moves: get("--flip-moves").map_or(d.flip_moves, |s| s.parse().expect("count")),
+                vote_keep: get("--vote-keep").map_or(d.vote_keep, |s| s.parse().expect("count")),
+                vote_bin: get("--vote-bin").map_or(d.vote_bin, |s| s.parse().expect("fraction")),
+                vote_spacing: get("--vote-spacing")
+                    .map_or(d.vote_spacing, |s| s.parse().expect("fraction")),
+                max_rounds: get("--max-rounds").map_or(d.max_rounds, |s| s.parse().expect("count")),
                 ..d
             };
-            let t0 = Instant::now();
+            let (t0, c0) = (Instant::now(), cpu_seconds());
             let result = register(&scene.cloud, &mesh, &options, &Silent).expect("register");
             let seconds = t0.elapsed().as_secs_f64();
+            let cpu = cpu_seconds().zip(c0).map(|(b, a)| b - a);
             let o = &result.objects[0];
             let pose = o.primitive.pose;
             let rot = pose.rotation.angle_to(&truth.rotation).to_degrees();
@@ -124,8 +136,20 @@ fn main() {
                 json!({"method": "primfit", "level": level, "seed": seed, "rotation_deg": rot,
                     "translation_rel": trans, "seconds": seconds, "existence": o.existence,
                     "inlier_share": o.inlier_share, "filter_rotation_deg": frot,
-                    "filter_translation_rel": ftrans, "rounds": o.rounds.len()})
+                    "filter_translation_rel": ftrans, "rounds": o.rounds.len(), "cpu_seconds": cpu})
             );
         }
     }
+}
+
+/// User + system CPU time of this process so far (Linux `/proc/self/stat`; `None`
+/// elsewhere): with the machine shared, CPU time is steadier than wall time.
+fn cpu_seconds() -> Option<f64> {
+    let stat = std::fs::read_to_string("/proc/self/stat").ok()?;
+    // Fields after the command name (which is in parentheses and may hold spaces).
+    let rest = &stat[stat.rfind(')')? + 2..];
+    let fields: Vec<&str> = rest.split_whitespace().collect();
+    let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
+    // USER_HZ is 100 on every Linux platform Rust supports.
+    Some(ticks / 100.0)
 }

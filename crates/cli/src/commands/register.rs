@@ -41,7 +41,12 @@ pub struct RegisterArgs {
     #[arg(long)]
     pub scale: bool,
     /// Scale range `lo,hi` for `--scale`.
-    #[arg(long, value_delimiter = ',', num_args = 2, default_value = "0.5,2")]
+    #[arg(
+        long,
+        value_delimiter = ',',
+        default_value = "0.5,2",
+        allow_hyphen_values = true
+    )]
     pub scale_range: Vec<f64>,
     /// Particles of the first round.
     #[arg(long)]

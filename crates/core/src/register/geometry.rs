@@ -26,6 +26,9 @@ use crate::spatial::PointIndex;
 #[derive(Debug)]
 pub struct DistanceGrid {
     lo: Point3<f64>,
+    /// The mesh's bounding box (unpadded).
+    mesh_lo: Point3<f64>,
+    mesh_hi: Point3<f64>,
     cell: f64,
     dims: [usize; 3],
     closest: Vec<[f32; 3]>,
@@ -43,6 +46,7 @@ impl DistanceGrid {
             lo = lo.inf(v);
             hi = hi.sup(v);
         }
+        let (mesh_lo, mesh_hi) = (lo, hi);
         let (lo, hi) = (lo - Vector3::repeat(pad), hi + Vector3::repeat(pad));
         let cell = (hi - lo).max() / cells.max(2) as f64;
         let dims = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell).ceil() as usize + 1);
@@ -61,6 +65,8 @@ impl DistanceGrid {
             .collect();
         DistanceGrid {
             lo,
+            mesh_lo,
+            mesh_hi,
             cell,
             dims,
             closest,
@@ -70,6 +76,13 @@ impl DistanceGrid {
     /// Grid cell size (local units).
     pub fn cell(&self) -> f64 {
         self.cell
+    }
+
+    /// A lower bound on [`DistanceGrid::distance`] that costs a few comparisons: the
+    /// distance from `p` (local frame) to the mesh's bounding box (local units).
+    #[inline]
+    pub fn box_distance(&self, p: &Point3<f64>) -> f64 {
+        (p.coords - p.coords.sup(&self.mesh_lo.coords).inf(&self.mesh_hi.coords)).norm()
     }
 
     /// Distance from `p` (local frame) to the mesh surface (local units).

@@ -31,6 +31,9 @@ pub struct IcpOptions {
     /// Stop once the distance is at its minimum and no surface point moved by more than
     /// this (scene units).
     pub tolerance: f64,
+    /// Bounds of an estimated scale (`None` = unbounded). Trimmed ICP may otherwise
+    /// shrink the model onto a few points: a small model has small residuals.
+    pub scale_range: Option<(f64, f64)>,
 }
 
 /// Outcome of [`refine`].
@@ -70,7 +73,7 @@ pub fn refine(
             break;
         }
         iterations += 1;
-        let next = solve_motion(&pairs, &pose, freedom);
+        let next = solve_motion(&pairs, &pose, freedom, options.scale_range);
         let moved = radius
             * (next.scale * next.rotation.angle_to(&pose.rotation)
                 + (next.scale - pose.scale).abs())
@@ -116,6 +119,9 @@ fn correspondences(
                 return None;
             }
             let local = pose.to_local(y);
+            if grid.box_distance(&local) * pose.scale > tau {
+                return None;
+            }
             // The grid value is within one cell of the truth: skip points surely too far.
             if (grid.distance(&local) - slack) * pose.scale > tau {
                 return None;
@@ -127,8 +133,14 @@ fn correspondences(
         .collect()
 }
 
-/// The motion minimising `Σ ‖y − (s R c + t)‖²` over the free parameters.
-fn solve_motion(pairs: &[(Point3<f64>, Point3<f64>, f64, usize)], pose: &Pose, f: Freedom) -> Pose {
+/// The motion minimising `Σ ‖y − (s R c + t)‖²` over the free parameters, the scale
+/// clamped to `range`.
+fn solve_motion(
+    pairs: &[(Point3<f64>, Point3<f64>, f64, usize)],
+    pose: &Pose,
+    f: Freedom,
+    range: Option<(f64, f64)>,
+) -> Pose {
     let n = pairs.len() as f64;
     let (mc, my) = if f.translation {
         (
@@ -157,7 +169,8 @@ fn solve_motion(pairs: &[(Point3<f64>, Point3<f64>, f64, usize)], pose: &Pose, f
     let rotation = UnitQuaternion::from_matrix(&r);
     let scale = if f.scale && cc > 0.0 {
         let trace = (svd.singular_values.component_mul(&d.diagonal())).sum();
-        (trace / cc).max(1e-9)
+        let s = (trace / cc).max(1e-9);
+        range.map_or(s, |(lo, hi)| s.clamp(lo, hi))
     } else {
         pose.scale
     };
@@ -203,6 +216,7 @@ mod tests {
             shrink: 0.8,
             max_iterations: 100,
             tolerance: 1e-9,
+            scale_range: None,
         };
         let free = Freedom {
             translation: true,

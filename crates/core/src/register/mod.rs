@@ -2,7 +2,20 @@
 //!
 //! The particles are poses of one mesh: rotations only (about the mesh's local origin,
 //! the translation fixed), or rotations and translations, optionally with a uniform
-//! scale. Every round:
+//! scale.
+//!
+//! **First population.** Rotation only: prior draws. With translation search, the 6-D
+//! prior is far too large to sample a close pose from (thesis §6.3.3), so translations
+//! are not drawn but **voted** ([`vote`]): for each of
+//! [`RegisterOptions::screen_draws`] prior rotations (and scales), every (cloud point,
+//! model sample) pair votes for the translation that would put the sample on the
+//! point; the object's points pile their votes on the true translation while the
+//! outliers' votes spread out. Each rotation becomes [`RegisterOptions::vote_peaks`]
+//! particles, one per vote peak; the [`RegisterOptions::vote_keep`] with the most votes,
+//! their translations refined at point level, form the first population. The search
+//! is then in effect over rotations only, where the filter works.
+//!
+//! **Every round:**
 //!
 //! 1. the particles form the candidate set, together with an explicit **outlier
 //!    primitive** (points uniformly filling the scene's bounding box,
@@ -11,13 +24,24 @@
 //!    them and [`crate::solve::solve`] gives every particle's existence probability;
 //! 3. each particle is measured by the binary chamfer decrease when it is added to the
 //!    background (outlier primitive + found objects): `Δ_i = Σ_y max(0, b(y) − d_i(y))
-//!    − w_prim g_i` (squared scene units), the "exp(−Δloss)" weighting. Existence alone is
-//!    a poor weight: the existence model keeps one of two near-identical particles and
-//!    zeroes the other, which would collapse the population onto one survivor;
+//!    − w_prim g_i` (squared scene units, the sum over all cloud points), the
+//!    "exp(−Δloss)" weighting. Existence alone is a poor weight: the existence model
+//!    keeps one of two near-identical particles and zeroes the other, which would
+//!    collapse the population onto one survivor;
 //! 4. weights `∝ exp(Δ_i / T)`, with `T` set so that the effective sample size is a fixed
-//!    share of the population ([`RegisterOptions::ess`]); systematic resampling (the best
-//!    particle is kept as is), then a random move on SO(3) (exponential map of a Gaussian
+//!    share of the population ([`RegisterOptions::ess`]); the best particle is kept as
+//!    is, the leaders are moved downhill by a few trimmed-ICP steps, the rest is
+//!    resampled (systematic) and moved at random on SO(3) (exponential map of a Gaussian
 //!    axis-angle vector), ℝ³ (Gaussian) and log-scale (Gaussian).
+//!
+//! **Symmetry basins.** A nearly symmetric object leaves several basins in the
+//! measurement: the pose turned by π about a principal axis of the model
+//! ([`symmetry_flips`]) explains almost as many points, and at the coarse kernels of the
+//! first rounds sometimes more. Each round the leaders' flips join the population, and
+//! every basin of the best particle's flips keeps a share of the particles
+//! ([`RegisterOptions::basin_share`]), resampled by its own weights, so that each basin
+//! is refined until the fine kernels tell them apart; the best particle of each basin
+//! is a candidate of the final choice.
 //!
 //! The kernel width — the outlier primitive's expected nearest-sample distance, i.e. how
 //! close a particle must come to a point to explain it better than "outlier" — starts at
@@ -26,8 +50,10 @@
 //! filter stops when the best pose has been stable for
 //! [`RegisterOptions::settle_rounds`] rounds at the final kernel.
 //!
-//! The best particle is then refined by trimmed ICP against the exact mesh surface
-//! ([`icp::refine`]), so the answer is precise, not just particle-close. Its existence is
+//! The best particle and the best of every other basin (or, where a basin is empty, the
+//! best particle's flip) are then settled by trimmed ICP and measured; the best is
+//! refined by trimmed ICP against the exact mesh surface ([`icp::refine`]), so the
+//! answer is precise, not just particle-close. Its existence is
 //! decided by a last chamfer solve over {outlier primitive, found objects, new pose};
 //! several objects are found one after another, each search conditioned on those already
 //! found (they join the background), until a new one does not exist
@@ -41,6 +67,7 @@
 pub mod geometry;
 pub mod icp;
 pub mod particle_filter;
+pub mod vote;
 
 use std::sync::Arc;
 use std::time::Instant;
@@ -73,11 +100,26 @@ pub struct RegisterOptions {
     /// Particles of the first round (drawn from the prior).
     pub initial_particles: usize,
     /// Prior draws screened for the first population (see
-    /// [`RegisterOptions::initial_particles`]); `None` = none with rotation only, 8 ×
-    /// `initial_particles` with translation search (the 6-D prior is far larger).
+    /// [`RegisterOptions::initial_particles`]); `None` = `initial_particles`, or with
+    /// translation search but no votes ([`RegisterOptions::vote_peaks`] = 0), 8 ×
+    /// `initial_particles` (the 6-D prior is far larger). With votes, each draw is a
+    /// rotation (and scale) that gets `vote_peaks` translations.
     pub screen: Option<usize>,
     /// Cloud points (a stride subsample) of the screening proxy.
     pub screen_points: usize,
+    /// With translation search: vote peaks kept per prior rotation of the first
+    /// population ([`vote::vote_translation`]; each becomes a particle with that
+    /// translation); 0 = draw translations from the prior instead.
+    pub vote_peaks: usize,
+    /// With translation votes: the candidates (rotation, vote peak) with the most votes
+    /// that form the first population, each refined ([`vote::fine_peak`],
+    /// [`vote::mean_shift`]).
+    pub vote_keep: usize,
+    /// Bin (grid cell) of the translation vote, fraction of the model size.
+    pub vote_bin: f64,
+    /// Spacing of the model samples that vote, fraction of the model size.
+    pub vote_spacing: f64,
+
     /// Particles of later rounds.
     pub particles: usize,
     /// Round limit per object.
@@ -113,6 +155,13 @@ pub struct RegisterOptions {
     pub search_support: f64,
     /// Leading particles moved downhill each round by trimmed-ICP steps at the kernel.
     pub local_moves: usize,
+    /// Leading particles whose approximate symmetry flips ([`symmetry_flips`]: turns by
+    /// π about the model's principal axes) join the next round, each round: a jump
+    /// between the basins a nearly symmetric object leaves in the measurement.
+    pub flip_moves: usize,
+    /// Share of the particles resampled within each other basin of the best particle
+    /// (the basins of its symmetry flips), by the basin's own weights, each round.
+    pub basin_share: f64,
     /// ICP steps of each such move.
     pub local_steps: usize,
     /// Most samples of the outlier primitive.
@@ -145,6 +194,10 @@ impl Default for RegisterOptions {
             initial_particles: 2000,
             screen: None,
             screen_points: 500,
+            vote_peaks: 2,
+            vote_keep: 400,
+            vote_bin: 0.08,
+            vote_spacing: 0.04,
             particles: 200,
             max_rounds: 40,
             kernel_start: 0.08,
@@ -160,6 +213,8 @@ impl Default for RegisterOptions {
             search_support: 30.0,
             local_moves: 8,
             local_steps: 3,
+            flip_moves: 2,
+            basin_share: 0.1,
             max_outlier_samples: 200_000,
             prior_margin: 1.0,
             sample_spacing: 1.0 / 15.0,
@@ -180,6 +235,8 @@ impl RegisterOptions {
             ("spread", self.spread),
             ("translation_spread", self.translation_spread),
             ("sample_spacing", self.sample_spacing),
+            ("vote_bin", self.vote_bin),
+            ("vote_spacing", self.vote_spacing),
             ("inlier_distance", self.inlier_distance),
         ];
         for (name, v) in positive {
@@ -189,6 +246,9 @@ impl RegisterOptions {
         }
         if !(self.kernel_shrink > 0.0 && self.kernel_shrink < 1.0) {
             return Err(Error::invalid("kernel_shrink must lie in (0, 1)"));
+        }
+        if !(0.0..=0.3).contains(&self.basin_share) {
+            return Err(Error::invalid("basin_share must lie in [0, 0.3]"));
         }
         if !(self.ess > 0.0 && self.ess <= 1.0) {
             return Err(Error::invalid("ess must lie in (0, 1]"));
@@ -210,9 +270,13 @@ impl RegisterOptions {
         if !(0.0..=1.0).contains(&self.threshold) {
             return Err(Error::invalid("threshold must lie in [0, 1]"));
         }
-        if self.initial_particles == 0 || self.particles == 0 || self.max_rounds == 0 {
+        if self.initial_particles == 0
+            || self.particles == 0
+            || self.max_rounds == 0
+            || self.vote_keep == 0
+        {
             return Err(Error::invalid(
-                "particle counts and max_rounds must be at least 1",
+                "particle counts, vote_keep and max_rounds must be at least 1",
             ));
         }
         if self.beta == 0 {
@@ -236,11 +300,12 @@ impl RegisterOptions {
 
     /// Prior draws screened for the first population (resolves `screen: None`).
     pub fn screen_draws(&self) -> usize {
-        self.screen.unwrap_or(if self.translation {
-            8 * self.initial_particles
-        } else {
-            self.initial_particles
-        })
+        self.screen
+            .unwrap_or(if self.translation && self.vote_peaks == 0 {
+                8 * self.initial_particles
+            } else {
+                self.initial_particles
+            })
     }
 
     /// The options as JSON (the `settings` of `result.json`).
@@ -256,6 +321,10 @@ impl RegisterOptions {
             "initial_particles": self.initial_particles,
             "screen": self.screen_draws(),
             "screen_points": self.screen_points,
+            "vote_peaks": self.vote_peaks,
+            "vote_keep": self.vote_keep,
+            "vote_bin": self.vote_bin,
+            "vote_spacing": self.vote_spacing,
             "particles": self.particles,
             "max_rounds": self.max_rounds,
             "kernel_start": self.kernel_start,
@@ -271,6 +340,8 @@ impl RegisterOptions {
             "search_support": self.search_support,
             "local_moves": self.local_moves,
             "local_steps": self.local_steps,
+            "flip_moves": self.flip_moves,
+            "basin_share": self.basin_share,
             "prior_margin": self.prior_margin,
             "sample_spacing": self.sample_spacing,
             "icp": self.icp,
@@ -368,6 +439,19 @@ fn context<'a>(
         .sqrt()
         .max(1e-9 * size);
     let flips = symmetry_flips(&fine, &pivot);
+    let voting = options.translation && options.vote_peaks > 0;
+    let (vote_index, vote_samples) = if voting {
+        (
+            Some(vote::VoteIndex::new(&cloud.points, options.vote_bin * size)),
+            shape
+                .sample_surface(options.vote_spacing * size)
+                .iter()
+                .map(|p| p.coords)
+                .collect(),
+        )
+    } else {
+        (None, Vec::new())
+    };
     let context = Context {
         cloud: &cloud.points,
         grid: grid.clone(),
@@ -381,6 +465,9 @@ fn context<'a>(
         size,
         centre,
         lever,
+        vote_index,
+        vote_samples,
+        flips: flips.clone(),
         options,
     };
     Ok((context, flips))
@@ -436,11 +523,19 @@ pub fn register(
             shrink: 0.8,
             max_iterations: 15,
             tolerance: 1e-6 * size * scale,
+            scale_range: options.scale,
         };
         let tries: Vec<Pose> = flips
             .iter()
-            .map(|f| {
-                let p = filtered.pose.compose(f);
+            .enumerate()
+            .map(|(k, f)| {
+                let p = match k
+                    .checked_sub(1)
+                    .and_then(|b| filtered.basins.get(b).copied().flatten())
+                {
+                    Some(b) => b,
+                    None => filtered.pose.compose(f),
+                };
                 if options.icp {
                     icp::refine(mesh, &grid, &cloud.points, p, freedom, &settle).pose
                 } else {
@@ -459,6 +554,7 @@ pub fn register(
         let pick = (0..tries.len())
             .max_by(|&a, &b| m.score[a].total_cmp(&m.score[b]).then(b.cmp(&a)))
             .unwrap_or(0);
+
         let chosen = tries[pick];
         let refined = icp::refine(
             mesh,
@@ -479,6 +575,7 @@ pub fn register(
                 shrink: 0.8,
                 max_iterations: if options.icp { 60 } else { 0 },
                 tolerance: 1e-6 * size * largest_scale,
+                scale_range: options.scale,
             },
         );
         // Existence of the new object next to the outlier primitive and those found.

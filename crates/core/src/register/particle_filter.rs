@@ -13,6 +13,7 @@ use rayon::prelude::*;
 use super::RegisterOptions;
 use super::geometry::{Chain, DistanceGrid, OutlierBox, Particles};
 use super::icp::{Freedom, IcpOptions, refine};
+use super::vote::{VoteIndex, refine_peak, vote_translation};
 use crate::atlas::MeshShape;
 use crate::chamfer::{CandidateGeometry, ChamferOptions, Coefficients, PointModel};
 use crate::lattice::Template;
@@ -48,6 +49,10 @@ pub struct FilterResult {
     pub kernel: f64,
     /// Per-round statistics.
     pub rounds: Vec<RoundStats>,
+    /// For each approximate symmetry flip `f` of the model (index ≥ 1 of
+    /// [`super::symmetry_flips`]), the best particle of the last round in the basin of
+    /// `pose ∘ f`, if any.
+    pub basins: Vec<Option<Pose>>,
 }
 
 /// What [`Context::measure`] returns for each pose.
@@ -78,6 +83,13 @@ pub(crate) struct Context<'a> {
     pub centre: Point3<f64>,
     /// RMS distance of the mesh's samples from the rotation centre (local units).
     pub lever: f64,
+    /// The cloud bucketed for translation votes (with translation search).
+    pub vote_index: Option<VoteIndex>,
+    /// The model samples that vote (local frame, local units).
+    pub vote_samples: Vec<Vector3<f64>>,
+    /// The identity and the model's approximate symmetry flips (poses to compose on the
+    /// right).
+    pub flips: Vec<Pose>,
     pub options: &'a RegisterOptions,
 }
 
@@ -160,21 +172,54 @@ impl Context<'_> {
             ..Default::default()
         };
         let solution = solve(&coeffs, &solver, &Silent)?;
-        let mut gain = vec![0.0; n];
-        for (j, y) in self.cloud.iter().enumerate() {
-            let mut b = outlier.surface_distance(0, y);
-            for k in 0..background.len() {
-                b = b.min(background.surface_distance(k, y));
-            }
-            for e in coeffs.row(j) {
-                let c = coeffs.cand[e] as usize;
-                if c >= offset {
-                    gain[c - offset] += (b - coeffs.dist[e]).max(0.0);
-                }
-            }
-        }
+        // Each point's cost under the background (outlier primitive and found objects),
+        // and each particle's gain over all points — not only over the β candidates each
+        // point keeps in the chamfer: in a concentrated population many particles pass
+        // near every object point and would crowd one another out of those lists.
+        let cost: Vec<f64> = self
+            .cloud
+            .par_iter()
+            .map(|y| {
+                (0..background.len())
+                    .map(|k| background.surface_distance(k, y))
+                    .fold(outlier.surface_distance(0, y), f64::min)
+            })
+            .collect();
+        // (A point farther than √b(y) from the particle's bounding box gains nothing.)
+        let gain: Vec<f64> = particles
+            .set
+            .poses
+            .par_iter()
+            .enumerate()
+            .map(|(i, pose)| {
+                let (c, r) = particles.bounding_ball(i);
+                self.cloud
+                    .iter()
+                    .zip(&cost)
+                    .filter_map(|(y, &b)| {
+                        if (y - c).norm_squared() > (r + b.sqrt()).powi(2) {
+                            return None;
+                        }
+                        let local = pose.to_local(y);
+                        let reach = b.sqrt() / pose.scale;
+                        if self.grid.box_distance(&local) >= reach {
+                            return None;
+                        }
+                        let d = self.grid.distance(&local) * pose.scale;
+                        Some((b - d * d).max(0.0))
+                    })
+                    .sum()
+            })
+            .collect();
+        // With a scale, clutter gains in proportion to the surface (scale²): each particle
+        // is charged the clutter gain of its own area beyond that of the model at scale 1
+        // (which the calibrated weight prices), or larger poses would win on clutter.
+        let clutter = self.price(kernel2, 0.0);
         let score = (0..n)
-            .map(|i| gain[i] - weight * coeffs.g[offset + i])
+            .map(|i| {
+                let s = particles.set.poses[i].scale;
+                gain[i] - weight * coeffs.g[offset + i] - clutter * (s * s - 1.0)
+            })
             .collect();
         let existence = if polish {
             solution
@@ -199,9 +244,10 @@ impl Context<'_> {
     }
 
     /// What an object must gain to exist: the point-term gain expected from uniform
-    /// clutter around its surface plus that of `support` perfectly explained points. Clutter of density ρ = J / V (the scene box) gains
-    /// `(4/3) ρ A δ³` on a surface of area `A` for the kernel `δ² = kernel2`. The
-    /// calibrated primitive weight makes a typical particle (median `g`) pay exactly this.
+    /// clutter around its surface plus that of `support` perfectly explained points.
+    /// Clutter of density ρ = J / V (the scene box) gains `(4/3) ρ A δ³` on a surface of
+    /// area `A` (the model's, at scale 1) for the kernel `δ² = kernel2`. The calibrated
+    /// primitive weight makes a typical particle (median `g`) pay exactly this.
     fn price(&self, kernel2: f64, support: f64) -> f64 {
         let volume = (self.hi - self.lo)
             .iter()
@@ -269,19 +315,18 @@ impl Context<'_> {
     /// A random move of `pose`: rotation by the exponential map of a Gaussian axis-angle
     /// vector (σ = `spread / lever` rad) about the model centre (about the origin when
     /// the translation is fixed); Gaussian translation (σ = `spread`); log-normal scale
-    /// (σ = `spread / lever`).
+    /// (σ = `spread / lever`), clamped to [`RegisterOptions::scale`].
     fn perturb(&self, pose: &Pose, spread: f64, rng: &mut ChaCha8Rng) -> Pose {
         let o = self.options;
         let sigma = spread / (self.lever * pose.scale);
         let omega = gaussian3(rng) * sigma;
         let rotation = UnitQuaternion::from_scaled_axis(omega) * pose.rotation;
-        let scale = if o.scale.is_some() {
-            {
+        let scale = match o.scale {
+            Some((lo, hi)) => {
                 let z: f64 = StandardNormal.sample(rng);
-                pose.scale * (sigma * z).exp()
+                (pose.scale * (sigma * z).exp()).clamp(lo, hi)
             }
-        } else {
-            pose.scale
+            None => pose.scale,
         };
         let translation = if o.translation {
             let centre = pose.to_scene(&self.centre);
@@ -304,6 +349,9 @@ impl Context<'_> {
     /// [`RegisterOptions::screen_points`] cloud points.
     fn initial(&self, rng: &mut ChaCha8Rng) -> Vec<Pose> {
         let o = self.options;
+        if let Some(index) = self.vote_index.as_ref().filter(|_| o.vote_peaks > 0) {
+            return self.initial_by_vote(index, rng);
+        }
         let draws = o.screen_draws().max(o.initial_particles);
         let poses: Vec<Pose> = (0..draws).map(|_| self.prior(rng)).collect();
         if draws == o.initial_particles {
@@ -333,6 +381,112 @@ impl Context<'_> {
             .collect()
     }
 
+    /// The first population with translation votes: [`RegisterOptions::screen_draws`]
+    /// prior rotations (with a scale range, each at stratified scales across the range,
+    /// at most a factor 1.25 apart), each with the translations of its
+    /// [`RegisterOptions::vote_peaks`] best vote peaks over the translation prior
+    /// ([`Context::vote`], one grid cell precise); the [`RegisterOptions::vote_keep`]
+    /// candidates with the most votes above clutter per unit model area, each
+    /// translation refined at point level ([`refine_peak`]).
+    fn initial_by_vote(&self, index: &VoteIndex, rng: &mut ChaCha8Rng) -> Vec<Pose> {
+        let o = self.options;
+        let draws = o.screen_draws().max(1);
+        let seeds: Vec<Pose> = (0..draws).map(|_| self.prior(rng)).collect();
+        // With a scale range, every rotation votes at stratified scales (ratio ≤ 1.25
+        // apart: a scale that far off still piles the object's votes within one cell).
+        let levels = match o.scale {
+            Some((lo, hi)) if hi > lo => ((hi / lo).ln() / 1.25f64.ln()).ceil().max(1.0) as usize,
+            _ => 1,
+        };
+        let jitter: Vec<f64> = (0..draws).map(|_| rng.random::<f64>()).collect();
+        let tries: Vec<Pose> = seeds
+            .iter()
+            .zip(&jitter)
+            .flat_map(|(p, u)| {
+                (0..levels).map(move |k| match o.scale {
+                    Some((lo, hi)) if levels > 1 => Pose {
+                        scale: lo * (hi / lo).powf((k as f64 + u) / levels as f64),
+                        ..*p
+                    },
+                    _ => *p,
+                })
+            })
+            .collect();
+        // Votes above what uniform clutter would give a peak window (samples × cloud
+        // density × window volume), per unit of model area (× scale²): a small model
+        // over the object's dense points gathers as many raw votes as the right one.
+        let volume = (self.hi - self.lo)
+            .iter()
+            .map(|e| e.max(1e-12))
+            .product::<f64>();
+        let clutter = self.vote_samples.len() as f64 * self.cloud.len() as f64 / volume
+            * (3.0 * index.cell()).powi(3);
+        let mut voted: Vec<(Pose, f64)> = tries
+            .par_iter()
+            .map(|p| {
+                self.vote(index, p, o.vote_peaks)
+                    .into_iter()
+                    .map(|(q, v)| (q, (v - clutter) * q.scale * q.scale))
+                    .collect::<Vec<_>>()
+            })
+            .collect::<Vec<_>>()
+            .concat();
+        if voted.is_empty() {
+            return seeds.into_iter().take(o.vote_keep).collect();
+        }
+        // Stable: ties keep the draw order.
+        voted.sort_by(|a, b| b.1.total_cmp(&a.1));
+        voted.truncate(o.vote_keep);
+        voted
+            .par_iter()
+            .map(|(p, _)| Pose {
+                translation: refine_peak(index, &self.vote_offsets(p), p.translation, 2),
+                ..*p
+            })
+            .collect()
+    }
+
+    /// The model samples that vote, rotated and scaled by `pose` (scene units).
+    fn vote_offsets(&self, pose: &Pose) -> Vec<Vector3<f64>> {
+        self.vote_samples
+            .iter()
+            .map(|m| pose.rotation * (m * pose.scale))
+            .collect()
+    }
+
+    /// The basin of `pose` relative to `best`: the index of the flip `f` (0 = identity)
+    /// for which the rotation of `best ∘ f` is nearest `pose`'s.
+    fn basin(&self, best: &Pose, pose: &Pose) -> usize {
+        self.flips
+            .iter()
+            .map(|f| pose.rotation.angle_to(&(best.rotation * f.rotation)))
+            .enumerate()
+            .min_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)))
+            .map_or(0, |(k, _)| k)
+    }
+
+    /// `pose`'s rotation and scale with the translations of the `peaks` best vote peaks
+    /// over its translation prior (the model inside the scene box; votes within a cell
+    /// of it count), cells of [`RegisterOptions::vote_bin`] × the model size; with the
+    /// votes of each peak.
+    pub fn vote(&self, index: &VoteIndex, pose: &Pose, peaks: usize) -> Vec<(Pose, f64)> {
+        let (clo, chi) = self.translation_prior(&pose.rotation, pose.scale);
+        let shift = pose.rotation * (self.centre.coords * pose.scale);
+        let (lo, hi) = (clo - shift, chi - shift);
+        vote_translation(index, &self.vote_offsets(pose), &lo, &hi, peaks, 0)
+            .into_iter()
+            .map(|p| {
+                (
+                    Pose {
+                        translation: p.translation,
+                        ..*pose
+                    },
+                    p.votes,
+                )
+            })
+            .collect()
+    }
+
     /// Runs the filter for one more object, given those already `found`.
     pub fn run(
         &self,
@@ -346,6 +500,7 @@ impl Context<'_> {
         let mut best = (Pose::identity(), f64::NEG_INFINITY);
         let mut stable = 0;
         let mut kernel = o.kernel_start * self.size;
+        let mut basins = vec![None; self.flips.len().saturating_sub(1)];
         for round in 0..o.max_rounds {
             kernel =
                 self.size * (o.kernel_start * o.kernel_shrink.powi(round as i32)).max(o.kernel_end);
@@ -360,6 +515,19 @@ impl Context<'_> {
             best = (poses[ib], sb);
             let weights = tempered_weights(&score, o.ess);
             let ess = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
+            let mut order: Vec<usize> = (0..poses.len()).collect();
+            order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
+            // Each particle's basin: the flip f for which best ∘ f is nearest in rotation.
+            let labels: Vec<usize> = poses.iter().map(|p| self.basin(&best.0, p)).collect();
+            let mut leading = vec![None; self.flips.len()];
+            for &k in &order {
+                leading[labels[k]].get_or_insert(k);
+            }
+            basins = leading
+                .iter()
+                .skip(1)
+                .map(|k| k.map(|k| poses[k]))
+                .collect();
             rounds.push(RoundStats {
                 kernel,
                 particles: poses.len(),
@@ -386,8 +554,6 @@ impl Context<'_> {
             // Keep the best unchanged, move the leaders downhill (a few trimmed-ICP steps at
             // the kernel width: the local optimum of the measurement for a fixed inlier
             // set), resample the rest (systematic) and move them at random.
-            let mut order: Vec<usize> = (0..poses.len()).collect();
-            order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
             let mut next = Vec::with_capacity(o.particles);
             next.push(poses[ib]);
             let icp = IcpOptions {
@@ -396,12 +562,31 @@ impl Context<'_> {
                 shrink: 1.0,
                 max_iterations: o.local_steps,
                 tolerance: 0.0,
+                scale_range: o.scale,
             };
-            let leaders: Vec<Pose> = order
+            // The leaders, the best of every other basin, and the symmetry jumps of the
+            // leaders (turned by π about the model's principal axes), each moved downhill.
+            let mut leaders: Vec<Pose> = order
                 .iter()
                 .take(o.local_moves.min(o.particles.saturating_sub(1)))
                 .map(|&k| poses[k])
                 .collect();
+            for k in leading.iter().skip(1).flatten() {
+                if leaders.len() + 1 < o.particles
+                    && order[..o.local_moves.min(order.len())]
+                        .iter()
+                        .all(|j| j != k)
+                {
+                    leaders.push(poses[*k]);
+                }
+            }
+            for &k in order.iter().take(o.flip_moves) {
+                for f in self.flips.iter().skip(1) {
+                    if leaders.len() + 1 < o.particles {
+                        leaders.push(poses[k].compose(f));
+                    }
+                }
+            }
             next.extend(
                 leaders
                     .par_iter()
@@ -411,7 +596,27 @@ impl Context<'_> {
                     .collect::<Vec<_>>(),
             );
             let spread = o.spread * kernel;
-            let picks = systematic(&weights, o.particles - next.len(), rng);
+            // Every other basin keeps its quota (resampled by its own weights), so that
+            // a basin the coarse kernels disfavour is still explored when the fine ones
+            // can tell the basins apart; the rest is resampled from all.
+            let quota = (o.basin_share * o.particles as f64).round() as usize;
+            let mut picks = Vec::new();
+            for l in 1..self.flips.len() {
+                let members: Vec<usize> = (0..poses.len()).filter(|&i| labels[i] == l).collect();
+                let room = o.particles.saturating_sub(next.len() + picks.len());
+                if members.is_empty() || room == 0 {
+                    continue;
+                }
+                let member_scores: Vec<f64> = members.iter().map(|&i| score[i]).collect();
+                let w = tempered_weights(&member_scores, o.ess);
+                picks.extend(
+                    systematic(&w, quota.min(room), rng)
+                        .into_iter()
+                        .map(|k| members[k]),
+                );
+            }
+            let room = o.particles.saturating_sub(next.len() + picks.len());
+            picks.extend(systematic(&weights, room, rng));
             next.extend(picks.iter().map(|&k| self.perturb(&poses[k], spread, rng)));
             poses = next;
         }
@@ -420,6 +625,7 @@ impl Context<'_> {
             score: best.1,
             kernel,
             rounds,
+            basins,
         })
     }
 }
