@@ -10,10 +10,10 @@
 //! samples are on average about σ from the nearest input point).
 
 use primfit_core::ShapeKind;
-use primfit_core::na::{Matrix3, UnitQuaternion};
 use primfit_core::fit::{FitOptions, FitResult, fit};
 use primfit_core::frame::FrameChoice;
 use primfit_core::metrics::{Metrics, MetricsOptions, evaluate};
+use primfit_core::na::{Matrix3, UnitQuaternion};
 use primfit_core::progress::Silent;
 use primfit_core::refine::RefineOptions;
 use primfit_core::synth::{
@@ -41,7 +41,14 @@ fn measures(scene: &Scene, r: &FitResult) -> Metrics {
 /// scene was turned.
 fn degrees_from_axis_aligned(q: &UnitQuaternion<f64>) -> f64 {
     let mut best = f64::INFINITY;
-    for perm in [[0, 1, 2], [0, 2, 1], [1, 0, 2], [1, 2, 0], [2, 0, 1], [2, 1, 0]] {
+    for perm in [
+        [0, 1, 2],
+        [0, 2, 1],
+        [1, 0, 2],
+        [1, 2, 0],
+        [2, 0, 1],
+        [2, 1, 0],
+    ] {
         for signs in 0..8u32 {
             let mut m = Matrix3::zeros();
             for (col, &row) in perm.iter().enumerate() {
@@ -61,8 +68,14 @@ fn check(name: &str, scene: &Scene, r: &FitResult, sigma: f64) {
     // The scene really is off the lattice: turned well away from any axis-aligned
     // orientation (so no lattice orientation fits it) and shifted.
     let turn = degrees_from_axis_aligned(&scene.misalignment.rotation);
-    assert!(turn >= 10.0, "{name}: only {turn:.1}° from axis-aligned; pick another seed");
-    assert!(scene.misalignment.translation.norm() > 0.0, "{name}: not shifted");
+    assert!(
+        turn >= 10.0,
+        "{name}: only {turn:.1}° from axis-aligned; pick another seed"
+    );
+    assert!(
+        scene.misalignment.translation.norm() > 0.0,
+        "{name}: not shifted"
+    );
     let m = measures(scene, r);
     let truth = scene.truth.len() as f64;
     let count = r.primitives.len() as f64;
@@ -171,7 +184,8 @@ fn the_estimated_frame_matches_the_misalignment() {
 /// - model→point mean ≤ h (no patch hangs off the data).
 #[test]
 fn the_real_plane_scan_is_covered_tightly() {
-    let path = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/plane_scan.ply");
+    let path =
+        std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../../examples/plane_scan.ply");
     let cloud = primfit_core::io::read_cloud(&path).unwrap();
     assert_eq!(cloud.len(), 3283);
     let defaults = FitOptions {
@@ -182,7 +196,13 @@ fn the_real_plane_scan_is_covered_tightly() {
     let r = fit(&cloud, &defaults, &Silent).unwrap();
     let h = r.settings.point_spacing;
     let sigma = r.settings.noise;
-    let m = evaluate(&cloud.points, &r.primitives, None, &MetricsOptions::default()).unwrap();
+    let m = evaluate(
+        &cloud.points,
+        &r.primitives,
+        None,
+        &MetricsOptions::default(),
+    )
+    .unwrap();
     let tight = evaluate(
         &cloud.points,
         &r.primitives,
