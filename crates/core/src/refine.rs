@@ -1,21 +1,46 @@
 //! Continuous refinement of chosen primitives: pose and sizes by damped Gauss–Newton
-//! (Levenberg–Marquardt) on the chamfer, then a new existence check.
+//! (Levenberg–Marquardt) on a chamfer, re-typing, then a new existence check and merging.
 //!
 //! After the lattice fit has decided which candidates exist, each primitive `P` is moved
-//! off the lattice to lower its share of the binary chamfer
+//! off the lattice to lower
 //!
-//! `F(P) = w_point Σ_{y ∈ A(P)} d(y, P)² + w_prim Σ_{x ∈ σ(P)} d(x, D)²`,
+//! `F(P) = w_point Σ_{y ∈ A(P)} d(y, P)² + w_s Σ_{x ∈ σ(P)} max(0, d(x, A(P)) − h)²`,
 //!
-//! where `A(P)` are the input points whose nearest fitted surface is `P` and lies within
-//! the trim distance (the assignment is redone every round; farther points are outliers
-//! and pull nothing), `σ(P)` are `P`'s surface samples at the fitter's sample spacing, and
-//! `D` is the whole cloud. The second term is what stops a patch from growing past the
-//! data. Units: `F` is in scene units².
+//! where `A(P)` are the input points `P` owns (below; redone every round; points farther
+//! than the trim distance from every primitive are outliers and pull nothing), `σ(P)` are
+//! `P`'s surface samples at the fitter's sample spacing `s`, and `h` is the cloud's median
+//! point spacing. Units: `F` is in scene units².
+//!
+//! **Why not the plain chamfer.** In the binary chamfer a sample's cost is its squared
+//! distance to the nearest input point *anywhere*. Inside the data that is not zero but
+//! about `h²/6` (regular sampling) to `h²/ln 2` (random sampling) per sample: the term
+//! charges for area, and each patch shrinks until the points it leaves behind cost as much
+//! as the samples it saves. Neighbouring squares then end up with gaps of about a point
+//! spacing between them (the defect of issue 8's first real-scan picture). The second term
+//! above keeps what the sample term is for, stopping a patch from growing past the data,
+//! without that bias:
+//!
+//! - *dead zone*: a sample within `h` of the data is on the data and costs nothing;
+//! - *own points*: a sample's distance is measured to `P`'s own points, so a patch that
+//!   grows over a neighbour's share pays for it, and two patches meet where their shares do;
+//! - *balance*: `w_s = w_prim · s² J / A` (`J` points, `A` the total area of the input
+//!   primitives): samples count as if the surfaces carried as many samples as the cloud
+//!   has points, the balance of the DESIGN §4 chamfer, whatever the sample spacing.
+//!
+//! **Ownership.** A point belongs to the primitive whose surface is nearest, within the
+//! trim distance; among the primitives whose surfaces are within `h` of that distance
+//! (overlapping coplanar patches, where noise would otherwise decide), to the one whose
+//! centre is nearest relative to its bounding radius, so overlaps split along their
+//! bisector.
 //!
 //! **Parameters.** A small rotation `ω` (applied on the left, about `P`'s origin), a
 //! translation `τ`, and `η_k = ln s_k` for each size `s_k` (so sizes stay positive), each
-//! size kept within a factor [`RefineOptions::max_growth`] of its start. Types never
-//! change; an elbow keeps `radius < bend`; meshes refine their pose only.
+//! size kept within a factor [`RefineOptions::max_growth`] of its start (the configured
+//! size for re-typed primitives). Squares and disks do not turn about their normal: they
+//! tilt onto their points but keep the lattice frame's in-plane orientation (for a disk
+//! that turn is a symmetry; a square's is hardly constrained inside the data, and left
+//! free it lets patches spin into each other's shares). An elbow keeps `radius < bend`;
+//! meshes refine their pose only.
 //!
 //! **Jacobians in closed form**, from the exact closest point `c` ([`Primitive::closest_point`]):
 //! for a point residual `r = |y − c|` with `n = (y − c)/r`, the envelope theorem gives
@@ -24,12 +49,23 @@
 //! shape's size derivative at fixed normalised surface coordinates (square, disk, sphere:
 //! the local point itself; cylinder: its axial component for the length and its radial
 //! one for the radius; elbow: the centre-line point for the bend, the tube offset for the
-//! radius), rotated into the scene. A sample residual `r = |x − q|` (with `q` its nearest
-//! cloud point) has `∂r/∂θ = m · ∂x/∂θ`, `m = (x − q)/r`.
+//! radius), rotated into the scene. A sample residual `r = |x − q| − h > 0` (with `q` its
+//! nearest own point) has `∂r/∂θ = m · ∂x/∂θ`, `m = (x − q)/|x − q|`.
 //!
 //! Each step solves `(JᵀWJ + λ (diag JᵀWJ + ε I)) δ = −JᵀWr` and is kept only if `F`
 //! decreases (then λ ÷ 3, else λ × 4). Primitives are refined independently and in
-//! parallel, so the result is deterministic.
+//! parallel, so the result is deterministic. A primitive's point term uses at most
+//! [`MAX_FIT_POINTS`] of its points (evenly strided, reweighted), and a cloud of more than
+//! [`MAX_REFINE_POINTS`] points is refined on an evenly strided subset of that size (the
+//! point weight scaled by the subsampling factor, `h` that of the subset), so refinement
+//! time does not grow with the density of the scan.
+//!
+//! **Re-typing.** LM cannot change a type, and a misaligned lattice often explains a
+//! straight run of pipe with elbows (short arcs fit pieces of a run better than cylinders
+//! at the wrong lattice positions). After the second round, every primitive is compared
+//! with each other configured type: the configured shape in each lattice orientation
+//! ([`orientations`] in the lattice frame), centred on the centroid of `P`'s points and
+//! refined on them; the best replaces `P` when its `F` is lower.
 //!
 //! **Existence re-check.** Refinement can make primitives redundant (two squares slide
 //! onto the same wall section). The refined set is scored with the binary chamfer
@@ -41,12 +77,9 @@
 //! its neighbours were refined with its points taken. So each primitive, fewest points
 //! first, is tried for removal *with* its neighbours (the primitives that would own its
 //! points) re-refined on the points they would then own; the removal is kept when the
-//! local chamfer (the points of the primitive and of its neighbours, each at
-//! `min(d², d_cap)`, plus the samples of all primitives involved) does not increase.
-//! In this check the samples are weighted as if the surfaces carried as many samples as
-//! the cloud has points (the balance of the DESIGN §4 chamfer); with the fitter's coarser
-//! samples, overlapping primitives that shave a little off many point distances would
-//! always win.
+//! local cost (the points of the primitive and of its neighbours, each at
+//! `min(d², d_cap)`, plus the samples of all primitives involved, with the dead zone and
+//! balance above, measured to the whole cloud) does not increase.
 
 use std::time::Instant;
 
@@ -241,7 +274,7 @@ fn refine_on(
             .collect();
         if retype_after == Some(round) {
             let groups = assign(ctx.points, &current, trim, ctx.point_spacing)?;
-            let switched: Vec<Option<(Primitive, Vec<(f64, f64)>)>> = current
+            let switched: Vec<Option<Retyped>> = current
                 .par_iter()
                 .zip(&groups)
                 .map(|(p, group)| {
@@ -288,6 +321,9 @@ fn size_limits(shape: &Shape, growth: f64) -> Vec<(f64, f64)> {
         .collect()
 }
 
+/// A re-typed primitive and its size limits.
+type Retyped = (Primitive, Vec<(f64, f64)>);
+
 /// The best primitive of another configured type for the points `assigned` to `p`, with
 /// its size limits (from the configured size), if it explains them at a lower refinement
 /// cost than `p` (see the module docs).
@@ -297,7 +333,7 @@ fn retype(
     p: &Primitive,
     assigned: &[Point3<f64>],
     options: &RefineOptions,
-) -> Option<(Primitive, Vec<(f64, f64)>)> {
+) -> Option<Retyped> {
     if assigned.len() < 3 {
         return None;
     }
@@ -751,7 +787,7 @@ const TINY: f64 = 1e-12;
 /// At most this many of a primitive's assigned points enter its LM problem (evenly
 /// strided, each weighted by `assigned / used`): the sum over all of them is estimated
 /// well by a few thousand, and refinement time stays independent of the cloud's density.
-const MAX_FIT_POINTS: usize = 4096;
+pub const MAX_FIT_POINTS: usize = 4096;
 
 /// The LM problem of one primitive: its assigned points, the cloud for its samples, size bounds.
 struct Fitter<'a> {
