@@ -4,8 +4,11 @@
     python scripts/render.py SCAN.ply FITTED.ply OUT.png [--title TEXT] [--elev 25 --azim -60]
 
 FITTED.ply is the mesh written by `primfit fit --mesh`; its faces are coloured by the
-per-vertex colours primfit writes (one palette colour per primitive). Needs numpy,
-matplotlib and the `primfit` Python package (or `plyfile`).
+per-vertex colours primfit writes (one palette colour per primitive). The scan's points
+take its own red/green/blue colours when it has them, else a colour by height (z).
+`--elev`/`--azim` are matplotlib's view angles in degrees (a camera-frame scan, z forward
+and y down, is seen from its camera with `--elev -90 --azim -90`). Needs numpy,
+matplotlib and `plyfile`.
 """
 import argparse
 
@@ -51,16 +54,21 @@ def main():
     ap.add_argument("--azim", type=float, default=-60)
     ap.add_argument("--max-points", type=int, default=20000)
     a = ap.parse_args()
-    pts, _, _ = read(a.scan)
+    pts, scan_rgb, _ = read(a.scan)
     if len(pts) > a.max_points:
-        pts = pts[np.random.default_rng(0).choice(len(pts), a.max_points, replace=False)]
+        keep = np.random.default_rng(0).choice(len(pts), a.max_points, replace=False)
+        pts = pts[keep]
+        scan_rgb = scan_rgb[keep] if scan_rgb is not None else None
     verts, rgb, faces = read(a.fitted)
     fig = plt.figure(figsize=(13, 5))
     for k, title in enumerate(["scan", "fitted primitives"]):
         ax = fig.add_subplot(1, 2, k + 1, projection="3d")
         ax.view_init(elev=a.elev, azim=a.azim)
         if k == 0:
-            ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=0.3, c=pts[:, 2], cmap="viridis")
+            if scan_rgb is not None:
+                ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=0.3, c=scan_rgb)
+            else:
+                ax.scatter(pts[:, 0], pts[:, 1], pts[:, 2], s=0.3, c=pts[:, 2], cmap="viridis")
         else:
             colors = rgb[faces].mean(1) if rgb is not None else "tab:blue"
             ax.add_collection3d(Poly3DCollection(verts[faces], facecolors=colors, edgecolor="none", alpha=0.9))

@@ -352,7 +352,8 @@ impl Settings {
         .to_json(self.frame_source);
         let refine = self.refine.as_ref().map(|r| {
             json!({ "rounds": r.rounds, "iterations": r.iterations, "trim": r.trim.unwrap_or(self.cap),
-                    "max_growth": r.max_growth, "recheck": r.recheck, "merge": r.merge, "fill": r.fill })
+                    "max_growth": r.max_growth, "recheck": r.recheck, "merge": r.merge, "fill": r.fill,
+                    "retype": r.retype })
         });
         let mut doc = json!({
             "types": self.kinds.iter().map(|k| k.name()).collect::<Vec<_>>(),
@@ -628,11 +629,16 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
 }
 
 /// Coarse to fine: when a refined fit leaves points unexplained (farther than
-/// `max(4σ, 2 × point spacing)` from every primitive, at least 1 % of the points and 20
-/// of them), fits a lattice of half the spacing to those points alone, adds what it
-/// finds to the model and refines the union (with merging) on the whole cloud. The
-/// result is kept only if its binary chamfer is lower. Returns `result` unchanged
-/// without refinement.
+/// `max(4σ̂, h / 2)` from every primitive, at least 1 % of the points and 20 of them),
+/// fits a lattice of half the spacing to those points alone, adds what it finds to the
+/// model and refines the union (with merging) on the whole cloud. The result is kept
+/// only if its binary chamfer is lower. Returns `result` unchanged without refinement.
+///
+/// `σ̂ = 1.4826 · median` of the point→model distances is the noise the refined model
+/// sees (a robust σ of the residuals), `h` the point spacing. The cloud's own noise
+/// estimate ([`Settings::noise`]) is no good here: on tubes thinner than its
+/// neighbourhoods it measures their curvature (σ ≈ 0.02 for a 0.1 radius pipe with
+/// 5 mm of noise), and a threshold of 4 of it hides a whole missing elbow.
 fn fill_gaps(
     cloud: &PointCloud,
     index: &PointIndex,
@@ -646,8 +652,8 @@ fn fill_gaps(
         return Ok(result);
     }
     let s = &result.settings;
-    let threshold = (4.0 * s.noise).max(2.0 * s.point_spacing);
     let distances = point_to_model_distances(&cloud.points, &result.primitives)?;
+    let threshold = (4.0 * robust_sigma(&distances)).max(s.point_spacing / 2.0);
     let residual: Vec<Point3<f64>> = cloud
         .points
         .iter()
@@ -673,12 +679,8 @@ fn fill_gaps(
     union.extend(extra.primitives.iter().cloned());
     let mut existence = result.existence.clone();
     existence.extend(extra.existence.iter().copied());
-    let ctx = RefineContext {
-        points: &cloud.points,
-        index,
-        sample_spacing: s.sample_spacing,
-        chamfer: &s.chamfer,
-    };
+    let shapes = s.shapes();
+    let ctx = refine_context(cloud, index, s, &shapes);
     let refined = refine(&ctx, &union, &options)?;
     let before = binary_chamfer(cloud, &result.primitives, s)?.total;
     progress.message(&format!(
@@ -696,6 +698,40 @@ fn fill_gaps(
     out.stats.refine_seconds += refined.seconds + extra.stats.solve_seconds;
     out.stats.filled += extra.primitives.len();
     Ok(out)
+}
+
+/// `1.4826 · median` of the finite `distances` (0 when there are none): the σ of a
+/// normal residual whose absolute values these are.
+fn robust_sigma(distances: &[f64]) -> f64 {
+    let mut d: Vec<f64> = distances
+        .iter()
+        .copied()
+        .filter(|d| d.is_finite())
+        .collect();
+    if d.is_empty() {
+        return 0.0;
+    }
+    let mid = d.len() / 2;
+    d.select_nth_unstable_by(mid, f64::total_cmp);
+    1.4826 * d[mid]
+}
+
+/// What [`refine`] needs from a fit under `settings` (`shapes` = `settings.shapes()`).
+fn refine_context<'a>(
+    cloud: &'a PointCloud,
+    index: &'a PointIndex,
+    settings: &'a Settings,
+    shapes: &'a [Shape],
+) -> RefineContext<'a> {
+    RefineContext {
+        points: &cloud.points,
+        index,
+        point_spacing: settings.point_spacing,
+        sample_spacing: settings.sample_spacing,
+        chamfer: &settings.chamfer,
+        shapes,
+        frame: settings.frame,
+    }
 }
 
 /// One lattice fit under `settings`, refined when `settings.refine` is set.
@@ -781,12 +817,8 @@ fn fit_pass(
     let mut existence: Vec<f64> = chosen.iter().map(|&i| solution.probability[i]).collect();
     let mut refined = None;
     if let Some(options) = &settings.refine {
-        let ctx = RefineContext {
-            points: &cloud.points,
-            index,
-            sample_spacing: settings.sample_spacing,
-            chamfer: &settings.chamfer,
-        };
+        let shapes = settings.shapes();
+        let ctx = refine_context(cloud, index, &settings, &shapes);
         let r: Refined = refine(&ctx, &primitives, options)?;
         progress.message(&format!(
             "refinement: binary chamfer {:.6} → {:.6}, {} primitives dropped, {:.2} s",

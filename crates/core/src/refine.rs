@@ -1,21 +1,46 @@
 //! Continuous refinement of chosen primitives: pose and sizes by damped Gauss–Newton
-//! (Levenberg–Marquardt) on the chamfer, then a new existence check.
+//! (Levenberg–Marquardt) on a chamfer, re-typing, then a new existence check and merging.
 //!
 //! After the lattice fit has decided which candidates exist, each primitive `P` is moved
-//! off the lattice to lower its share of the binary chamfer
+//! off the lattice to lower
 //!
-//! `F(P) = w_point Σ_{y ∈ A(P)} d(y, P)² + w_prim Σ_{x ∈ σ(P)} d(x, D)²`,
+//! `F(P) = w_point Σ_{y ∈ A(P)} d(y, P)² + w_s Σ_{x ∈ σ(P)} max(0, d(x, A(P)) − h)²`,
 //!
-//! where `A(P)` are the input points whose nearest fitted surface is `P` and lies within
-//! the trim distance (the assignment is redone every round; farther points are outliers
-//! and pull nothing), `σ(P)` are `P`'s surface samples at the fitter's sample spacing, and
-//! `D` is the whole cloud. The second term is what stops a patch from growing past the
-//! data. Units: `F` is in scene units².
+//! where `A(P)` are the input points `P` owns (below; redone every round; points farther
+//! than the trim distance from every primitive are outliers and pull nothing), `σ(P)` are
+//! `P`'s surface samples at the fitter's sample spacing `s`, and `h` is the cloud's median
+//! point spacing. Units: `F` is in scene units².
+//!
+//! **Why not the plain chamfer.** In the binary chamfer a sample's cost is its squared
+//! distance to the nearest input point *anywhere*. Inside the data that is not zero but
+//! about `h²/6` (regular sampling) to `h²/ln 2` (random sampling) per sample: the term
+//! charges for area, and each patch shrinks until the points it leaves behind cost as much
+//! as the samples it saves. Neighbouring squares then end up with gaps of about a point
+//! spacing between them (the defect of issue 8's first real-scan picture). The second term
+//! above keeps what the sample term is for, stopping a patch from growing past the data,
+//! without that bias:
+//!
+//! - *dead zone*: a sample within `h` of the data is on the data and costs nothing;
+//! - *own points*: a sample's distance is measured to `P`'s own points, so a patch that
+//!   grows over a neighbour's share pays for it, and two patches meet where their shares do;
+//! - *balance*: `w_s = w_prim · s² J / A` (`J` points, `A` the total area of the input
+//!   primitives): samples count as if the surfaces carried as many samples as the cloud
+//!   has points, the balance of the DESIGN §4 chamfer, whatever the sample spacing.
+//!
+//! **Ownership.** A point belongs to the primitive whose surface is nearest, within the
+//! trim distance; among the primitives whose surfaces are within `h` of that distance
+//! (overlapping coplanar patches, where noise would otherwise decide), to the one whose
+//! centre is nearest relative to its bounding radius, so overlaps split along their
+//! bisector.
 //!
 //! **Parameters.** A small rotation `ω` (applied on the left, about `P`'s origin), a
 //! translation `τ`, and `η_k = ln s_k` for each size `s_k` (so sizes stay positive), each
-//! size kept within a factor [`RefineOptions::max_growth`] of its start. Types never
-//! change; an elbow keeps `radius < bend`; meshes refine their pose only.
+//! size kept within a factor [`RefineOptions::max_growth`] of its start (the configured
+//! size for re-typed primitives). Squares and disks do not turn about their normal: they
+//! tilt onto their points but keep the lattice frame's in-plane orientation (for a disk
+//! that turn is a symmetry; a square's is hardly constrained inside the data, and left
+//! free it lets patches spin into each other's shares). An elbow keeps `radius < bend`;
+//! meshes refine their pose only.
 //!
 //! **Jacobians in closed form**, from the exact closest point `c` ([`Primitive::closest_point`]):
 //! for a point residual `r = |y − c|` with `n = (y − c)/r`, the envelope theorem gives
@@ -24,12 +49,23 @@
 //! shape's size derivative at fixed normalised surface coordinates (square, disk, sphere:
 //! the local point itself; cylinder: its axial component for the length and its radial
 //! one for the radius; elbow: the centre-line point for the bend, the tube offset for the
-//! radius), rotated into the scene. A sample residual `r = |x − q|` (with `q` its nearest
-//! cloud point) has `∂r/∂θ = m · ∂x/∂θ`, `m = (x − q)/r`.
+//! radius), rotated into the scene. A sample residual `r = |x − q| − h > 0` (with `q` its
+//! nearest own point) has `∂r/∂θ = m · ∂x/∂θ`, `m = (x − q)/|x − q|`.
 //!
 //! Each step solves `(JᵀWJ + λ (diag JᵀWJ + ε I)) δ = −JᵀWr` and is kept only if `F`
 //! decreases (then λ ÷ 3, else λ × 4). Primitives are refined independently and in
-//! parallel, so the result is deterministic.
+//! parallel, so the result is deterministic. A primitive's point term uses at most
+//! [`MAX_FIT_POINTS`] of its points (evenly strided, reweighted), and a cloud of more than
+//! [`MAX_REFINE_POINTS`] points is refined on an evenly strided subset of that size (the
+//! point weight scaled by the subsampling factor, `h` that of the subset), so refinement
+//! time does not grow with the density of the scan.
+//!
+//! **Re-typing.** LM cannot change a type, and a misaligned lattice often explains a
+//! straight run of pipe with elbows (short arcs fit pieces of a run better than cylinders
+//! at the wrong lattice positions). After the second round, every primitive is compared
+//! with each other configured type: the configured shape in each lattice orientation
+//! ([`orientations`] in the lattice frame), centred on the centroid of `P`'s points and
+//! refined on them; the best replaces `P` when its `F` is lower.
 //!
 //! **Existence re-check.** Refinement can make primitives redundant (two squares slide
 //! onto the same wall section). The refined set is scored with the binary chamfer
@@ -41,25 +77,22 @@
 //! its neighbours were refined with its points taken. So each primitive, fewest points
 //! first, is tried for removal *with* its neighbours (the primitives that would own its
 //! points) re-refined on the points they would then own; the removal is kept when the
-//! local chamfer (the points of the primitive and of its neighbours, each at
-//! `min(d², d_cap)`, plus the samples of all primitives involved) does not increase.
-//! In this check the samples are weighted as if the surfaces carried as many samples as
-//! the cloud has points (the balance of the DESIGN §4 chamfer); with the fitter's coarser
-//! samples, overlapping primitives that shave a little off many point distances would
-//! always win.
+//! local cost (the points of the primitive and of its neighbours, each at
+//! `min(d², d_cap)`, plus the samples of all primitives involved, with the dead zone and
+//! balance above, measured to the whole cloud) does not increase.
 
 use std::time::Instant;
 
 use nalgebra::{DMatrix, DVector, Point3, SMatrix, SVector, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
-use crate::atlas::Shape;
+use crate::atlas::{Shape, ShapeKind};
 use crate::chamfer::{ChamferOptions, Coefficients, Evaluator};
-use crate::lattice::CandidateSet;
+use crate::lattice::{CandidateSet, orientations};
 use crate::metrics::PrimitiveIndex;
 use crate::progress::Silent;
 use crate::solve::{Moves, polish};
-use crate::spatial::PointIndex;
+use crate::spatial::{PointIndex, median_spacing};
 use crate::{Error, Pose, Primitive, Result};
 
 /// Options of [`refine`].
@@ -81,6 +114,8 @@ pub struct RefineOptions {
     /// Coarse to fine: fit a finer lattice where refined primitives leave points
     /// unexplained (done by [`crate::fit::fit`], see there).
     pub fill: bool,
+    /// Try the other configured types in place of each primitive (see the module docs).
+    pub retype: bool,
 }
 
 impl Default for RefineOptions {
@@ -93,6 +128,7 @@ impl Default for RefineOptions {
             recheck: true,
             merge: true,
             fill: true,
+            retype: true,
         }
     }
 }
@@ -134,17 +170,25 @@ pub struct Refined {
     pub seconds: f64,
 }
 
-/// What refinement needs from the fit: the cloud with its index, the sample spacing of
-/// candidate surfaces and the chamfer options (weights, `d_cap`, β).
+/// What refinement needs from the fit: the cloud with its index and point spacing, the
+/// sample spacing of candidate surfaces, the chamfer options (weights, `d_cap`, β), and
+/// the lattice's types and frame (for re-typing).
 pub struct RefineContext<'a> {
     /// Input points.
     pub points: &'a [Point3<f64>],
     /// kd-tree over `points`.
     pub index: &'a PointIndex,
+    /// The cloud's median nearest-neighbour distance `h` (scene units): a surface sample
+    /// within `h` of an input point lies on the data and costs nothing (module docs).
+    pub point_spacing: f64,
     /// Spacing of primitive surface samples σ (scene units).
     pub sample_spacing: f64,
     /// Loss options of the fit.
     pub chamfer: &'a ChamferOptions,
+    /// The fit's shapes at their configured sizes (the types re-typing may switch to).
+    pub shapes: &'a [Shape],
+    /// The lattice frame (lattice → scene): re-typed primitives start in its orientations.
+    pub frame: UnitQuaternion<f64>,
 }
 
 /// Refines `primitives` against the cloud (see the module docs).
@@ -155,29 +199,96 @@ pub fn refine(
 ) -> Result<Refined> {
     options.validate()?;
     let start = Instant::now();
-    let trim = options.trim.unwrap_or(ctx.chamfer.cap.sqrt());
     let loss_before = binary_loss(ctx, primitives)?;
-    let limits: Vec<Vec<(f64, f64)>> = primitives
+    let weights = Weights::new(ctx, primitives);
+    let (refined, source, dropped) = if ctx.points.len() > MAX_REFINE_POINTS {
+        // A large cloud is refined on an evenly strided subset; the point weight grows by
+        // the subsampling factor k so every cost still estimates the whole cloud's.
+        let stride = ctx.points.len().div_ceil(MAX_REFINE_POINTS);
+        let points: Vec<Point3<f64>> = ctx.points.iter().step_by(stride).copied().collect();
+        let index = PointIndex::new(&points);
+        let k = ctx.points.len() as f64 / points.len() as f64;
+        let point_spacing =
+            median_spacing(&points, &index, 2000).unwrap_or(ctx.point_spacing * k.sqrt());
+        let chamfer = ChamferOptions {
+            point_weight: ctx.chamfer.point_weight * k,
+            ..ctx.chamfer.clone()
+        };
+        let sub = RefineContext {
+            points: &points,
+            index: &index,
+            point_spacing,
+            sample_spacing: ctx.sample_spacing,
+            chamfer: &chamfer,
+            shapes: ctx.shapes,
+            frame: ctx.frame,
+        };
+        let weights = Weights {
+            point: weights.point * k,
+            slack: point_spacing,
+            ..weights
+        };
+        refine_on(&sub, &weights, primitives, options)?
+    } else {
+        refine_on(ctx, &weights, primitives, options)?
+    };
+    let loss_after = binary_loss(ctx, &refined)?;
+    Ok(Refined {
+        primitives: refined,
+        source,
+        dropped,
+        loss_before,
+        loss_after,
+        seconds: start.elapsed().as_secs_f64(),
+    })
+}
+
+/// Refinement proper on `ctx`'s points: rounds of assignment and LM (with re-typing),
+/// the existence re-check and the merge. Returns the survivors, their indices in
+/// `primitives`, and how many were removed.
+fn refine_on(
+    ctx: &RefineContext<'_>,
+    weights: &Weights,
+    primitives: &[Primitive],
+    options: &RefineOptions,
+) -> Result<(Vec<Primitive>, Vec<usize>, usize)> {
+    let trim = options.trim.unwrap_or(ctx.chamfer.cap.sqrt());
+    let mut limits: Vec<Vec<(f64, f64)>> = primitives
         .iter()
-        .map(|p| {
-            sizes(&p.shape)
-                .iter()
-                .map(|s| (s / options.max_growth, s * options.max_growth))
-                .collect()
-        })
+        .map(|p| size_limits(&p.shape, options.max_growth))
         .collect();
     let mut current = primitives.to_vec();
-    for _ in 0..options.rounds {
-        let groups = assign(ctx.points, &current, trim)?;
+    // Re-typing comes after the second round (the first when there is only one), so the
+    // primitives it judges have already settled onto their points.
+    let retype_after = (options.retype && options.rounds > 0).then(|| options.rounds.min(2) - 1);
+    for round in 0..options.rounds {
+        let groups = assign(ctx.points, &current, trim, ctx.point_spacing)?;
         current = current
             .par_iter()
             .zip(&groups)
             .zip(&limits)
             .map(|((p, group), lim)| {
                 let assigned: Vec<Point3<f64>> = group.iter().map(|&j| ctx.points[j]).collect();
-                Fitter::new(ctx, &assigned, lim).run(p.clone(), options.iterations)
+                Fitter::new(ctx, weights, &assigned, lim).run(p.clone(), options.iterations)
             })
             .collect();
+        if retype_after == Some(round) {
+            let groups = assign(ctx.points, &current, trim, ctx.point_spacing)?;
+            let switched: Vec<Option<Retyped>> = current
+                .par_iter()
+                .zip(&groups)
+                .map(|(p, group)| {
+                    let assigned: Vec<Point3<f64>> = group.iter().map(|&j| ctx.points[j]).collect();
+                    retype(ctx, weights, p, &assigned, options)
+                })
+                .collect();
+            for (i, q) in switched.into_iter().enumerate() {
+                if let Some((q, lim)) = q {
+                    limits[i] = lim;
+                    current[i] = q;
+                }
+            }
+        }
     }
     let keep = if options.recheck && !current.is_empty() {
         recheck(ctx, &current)?
@@ -188,27 +299,115 @@ pub fn refine(
     let mut primitives: Vec<Primitive> = source.iter().map(|&i| current[i].clone()).collect();
     if options.merge {
         let lims: Vec<Vec<(f64, f64)>> = source.iter().map(|&i| limits[i].clone()).collect();
-        let area: f64 = primitives.iter().map(Primitive::area).sum();
         let merged = Merger {
             ctx,
+            weights,
             trim,
             iterations: options.iterations,
-            sample_weight: ctx.sample_spacing.powi(2) * ctx.points.len() as f64
-                / area.max(f64::MIN_POSITIVE),
         }
         .run(primitives, lims)?;
         source = merged.1.iter().map(|&k| source[k]).collect();
         primitives = merged.0;
     }
-    let loss_after = binary_loss(ctx, &primitives)?;
-    Ok(Refined {
-        dropped: current.len() - primitives.len(),
-        primitives,
-        source,
-        loss_before,
-        loss_after,
-        seconds: start.elapsed().as_secs_f64(),
-    })
+    let dropped = current.len() - primitives.len();
+    Ok((primitives, source, dropped))
+}
+
+/// `[s / g, s · g]` for each size `s` of `shape` ([`sizes`]), `g` the maximum growth.
+fn size_limits(shape: &Shape, growth: f64) -> Vec<(f64, f64)> {
+    sizes(shape)
+        .iter()
+        .map(|s| (s / growth, s * growth))
+        .collect()
+}
+
+/// A re-typed primitive and its size limits.
+type Retyped = (Primitive, Vec<(f64, f64)>);
+
+/// The best primitive of another configured type for the points `assigned` to `p`, with
+/// its size limits (from the configured size), if it explains them at a lower refinement
+/// cost than `p` (see the module docs).
+fn retype(
+    ctx: &RefineContext<'_>,
+    weights: &Weights,
+    p: &Primitive,
+    assigned: &[Point3<f64>],
+    options: &RefineOptions,
+) -> Option<Retyped> {
+    if assigned.len() < 3 {
+        return None;
+    }
+    let kind = p.shape.kind();
+    let others: Vec<&Shape> = ctx
+        .shapes
+        .iter()
+        .filter(|s| s.kind() != kind && s.kind() != ShapeKind::Mesh)
+        .collect();
+    if others.is_empty() {
+        return None;
+    }
+    let centroid = assigned.iter().map(|y| y.coords).sum::<Vector3<f64>>() / assigned.len() as f64;
+    let no_limits: [(f64, f64); 0] = [];
+    let mut best = (
+        Fitter::new(ctx, weights, assigned, &no_limits).cost(p),
+        None,
+    );
+    for shape in others {
+        let samples = shape.sample_surface(ctx.sample_spacing);
+        if samples.is_empty() {
+            continue;
+        }
+        let local = samples.iter().map(|x| x.coords).sum::<Vector3<f64>>() / samples.len() as f64;
+        let limits = size_limits(shape, options.max_growth);
+        let fitter = Fitter::new(ctx, weights, assigned, &limits);
+        for r in orientations(shape.kind()) {
+            let rotation = ctx.frame * r;
+            let start = Primitive::new(
+                shape.clone(),
+                Pose::new(rotation, centroid - rotation * local),
+            );
+            let q = fitter.run(start, options.iterations);
+            let cost = fitter.cost(&q);
+            if cost < best.0 {
+                best = (cost, Some((q, limits.clone())));
+            }
+        }
+    }
+    best.1
+}
+
+/// Weights of the refinement cost (module docs): `point` per squared point residual,
+/// `sample` per squared sample residual, and the `slack` subtracted from a sample's
+/// distance to the cloud.
+#[derive(Debug, Clone, Copy)]
+struct Weights {
+    point: f64,
+    sample: f64,
+    slack: f64,
+}
+
+impl Weights {
+    /// `point = w_point`; `sample = w_prim · s² J / A` for sample spacing `s`, `J` points
+    /// and the total area `A` of `prims`, so that the samples count as if the surfaces
+    /// carried as many samples as the cloud has points (the balance of the DESIGN §4
+    /// chamfer); `slack` = the cloud's point spacing.
+    fn new(ctx: &RefineContext<'_>, prims: &[Primitive]) -> Self {
+        let area: f64 = prims.iter().map(Primitive::area).sum();
+        Weights {
+            point: ctx.chamfer.point_weight,
+            sample: ctx.chamfer.primitive_weight
+                * ctx.sample_spacing.powi(2)
+                * ctx.points.len() as f64
+                / area.max(f64::MIN_POSITIVE),
+            slack: ctx.point_spacing.max(0.0),
+        }
+    }
+
+    /// The residual of a sample at squared distance `d2` from the cloud: `max(0, d − slack)`.
+    #[inline]
+    fn sample_residual(&self, d2: f64) -> f64 {
+        (d2.sqrt() - self.slack).max(0.0)
+    }
 }
 
 /// A model as `(index in the merge input, primitive)` pairs, and the region (point
@@ -218,12 +417,9 @@ type Alive = (Vec<(usize, Primitive)>, Vec<usize>);
 /// The merge pass of the module docs.
 struct Merger<'a> {
     ctx: &'a RefineContext<'a>,
+    weights: &'a Weights,
     trim: f64,
     iterations: usize,
-    /// Weight of one sample's squared distance: `s² J / A` (sample spacing `s`, `J` points,
-    /// model area `A`), so that the samples count as if the surfaces carried as many
-    /// samples as there are points, as in the DESIGN §4 chamfer.
-    sample_weight: f64,
 }
 
 impl Merger<'_> {
@@ -234,7 +430,7 @@ impl Merger<'_> {
         prims: Vec<Primitive>,
         limits: Vec<Vec<(f64, f64)>>,
     ) -> Result<(Vec<Primitive>, Vec<usize>)> {
-        let mut owner = owners(self.ctx.points, &prims, self.trim)?;
+        let mut owner = owners(self.ctx.points, &prims, self.trim, self.ctx.point_spacing)?;
         let mut count = vec![0usize; prims.len()];
         for o in owner.iter().flatten() {
             count[*o] += 1;
@@ -256,7 +452,13 @@ impl Merger<'_> {
                     }
                 }
                 let model: Vec<Primitive> = alive.iter().map(|a| a.1.clone()).collect();
-                let fresh = owners_of(self.ctx.points, &region, &model, self.trim)?;
+                let fresh = owners_of(
+                    self.ctx.points,
+                    &region,
+                    &model,
+                    self.trim,
+                    self.ctx.point_spacing,
+                )?;
                 for (&j, o) in region.iter().zip(fresh) {
                     owner[j] = o;
                 }
@@ -281,7 +483,13 @@ impl Merger<'_> {
         let mut rest: Vec<(usize, Primitive)> = alive.to_vec();
         rest.remove(pos);
         let rest_model: Vec<Primitive> = rest.iter().map(|a| a.1.clone()).collect();
-        let heirs = owners_of(self.ctx.points, &mine, &rest_model, self.trim)?;
+        let heirs = owners_of(
+            self.ctx.points,
+            &mine,
+            &rest_model,
+            self.trim,
+            self.ctx.point_spacing,
+        )?;
         let mut neighbours: Vec<usize> = heirs.iter().flatten().copied().collect();
         neighbours.sort_unstable();
         neighbours.dedup();
@@ -313,7 +521,13 @@ impl Merger<'_> {
         let mut trial = rest.clone();
         for _ in 0..MERGE_ROUNDS {
             let model: Vec<Primitive> = trial.iter().map(|a| a.1.clone()).collect();
-            let region_owner = owners_of(self.ctx.points, &region, &model, self.trim)?;
+            let region_owner = owners_of(
+                self.ctx.points,
+                &region,
+                &model,
+                self.trim,
+                self.ctx.point_spacing,
+            )?;
             let refitted: Vec<Primitive> = neighbours
                 .par_iter()
                 .map(|&k| {
@@ -324,7 +538,8 @@ impl Merger<'_> {
                         .map(|(&j, _)| self.ctx.points[j])
                         .collect();
                     let lim = &limits[trial[k].0];
-                    Fitter::new(self.ctx, &pts, lim).run(trial[k].1.clone(), 2 * self.iterations)
+                    Fitter::new(self.ctx, self.weights, &pts, lim)
+                        .run(trial[k].1.clone(), 2 * self.iterations)
                 })
                 .collect();
             for (&k, p) in neighbours.iter().zip(refitted) {
@@ -362,57 +577,112 @@ impl Merger<'_> {
         }
         for i in sampled {
             let p = &model[i];
-            cost += chamfer.primitive_weight
-                * self.sample_weight
+            cost += self.weights.sample
                 * p.sample_surface(self.ctx.sample_spacing)
                     .iter()
-                    .filter_map(|x| self.ctx.index.nearest(x).map(|r| r.1))
+                    .filter_map(|x| self.ctx.index.nearest(x))
+                    .map(|(_, d2)| self.weights.sample_residual(d2).powi(2))
                     .sum::<f64>();
         }
         Ok(cost)
     }
 }
 
-/// For each point, its nearest primitive within `trim` (or `None`).
-fn owners(points: &[Point3<f64>], prims: &[Primitive], trim: f64) -> Result<Vec<Option<usize>>> {
-    let all: Vec<usize> = (0..points.len()).collect();
-    owners_of(points, &all, prims, trim)
+/// Who owns a point: the primitive whose surface is nearest, within the trim distance;
+/// among the primitives whose surfaces are within `tie` of that nearest distance, the one
+/// whose centre is nearest relative to its bounding radius (`|y − c| / R`). Overlapping
+/// coplanar patches are thus split along their bisector rather than by noise, and the
+/// samples term (measured to a primitive's own points, see the module docs) holds each
+/// patch to its share.
+struct Ownership<'a> {
+    prims: &'a [Primitive],
+    index: PrimitiveIndex<'a>,
+    /// kd-tree over the primitives' centres.
+    centres: PointIndex,
+    max_radius: f64,
+    trim: f64,
+    tie: f64,
 }
 
-/// For each of the points `which`, its nearest primitive within `trim` (or `None`).
+impl<'a> Ownership<'a> {
+    fn new(prims: &'a [Primitive], trim: f64, tie: f64) -> Result<Self> {
+        let centres: Vec<Point3<f64>> = prims.iter().map(Primitive::center).collect();
+        Ok(Ownership {
+            prims,
+            index: PrimitiveIndex::new(prims)?,
+            centres: PointIndex::new(&centres),
+            max_radius: prims
+                .iter()
+                .map(Primitive::bounding_radius)
+                .fold(0.0, f64::max),
+            trim,
+            tie,
+        })
+    }
+
+    /// The owner of `y`, if any.
+    fn owner(&self, y: &Point3<f64>) -> Option<usize> {
+        let (best, d0) = self.index.nearest(y).filter(|(_, d)| *d <= self.trim)?;
+        if self.tie <= 0.0 {
+            return Some(best);
+        }
+        let limit = d0 + self.tie;
+        let reach = limit + self.max_radius;
+        let relative = |k: usize| {
+            let p = &self.prims[k];
+            (y - p.center()).norm() / p.bounding_radius().max(f64::MIN_POSITIVE)
+        };
+        let mut owner = (relative(best), best);
+        for (k, c2) in self.centres.within(y, reach * reach) {
+            let k = k as usize;
+            let p = &self.prims[k];
+            if k == best || c2.sqrt() - p.bounding_radius() > limit || p.distance(y) > limit {
+                continue;
+            }
+            let candidate = (relative(k), k);
+            if candidate.0 < owner.0 || (candidate.0 == owner.0 && k < owner.1) {
+                owner = candidate;
+            }
+        }
+        Some(owner.1)
+    }
+}
+
+/// For each point, its owner among `prims` ([`Ownership`]).
+fn owners(
+    points: &[Point3<f64>],
+    prims: &[Primitive],
+    trim: f64,
+    tie: f64,
+) -> Result<Vec<Option<usize>>> {
+    let all: Vec<usize> = (0..points.len()).collect();
+    owners_of(points, &all, prims, trim, tie)
+}
+
+/// For each of the points `which`, its owner among `prims` ([`Ownership`]).
 fn owners_of(
     points: &[Point3<f64>],
     which: &[usize],
     prims: &[Primitive],
     trim: f64,
+    tie: f64,
 ) -> Result<Vec<Option<usize>>> {
     if prims.is_empty() {
         return Ok(vec![None; which.len()]);
     }
-    let index = PrimitiveIndex::new(prims)?;
-    Ok(which
-        .par_iter()
-        .map(|&j| {
-            index
-                .nearest(&points[j])
-                .filter(|(_, d)| *d <= trim)
-                .map(|(i, _)| i)
-        })
-        .collect())
+    let own = Ownership::new(prims, trim, tie)?;
+    Ok(which.par_iter().map(|&j| own.owner(&points[j])).collect())
 }
 
-/// For each primitive, the indices of the points whose nearest primitive it is, within `trim`.
-fn assign(points: &[Point3<f64>], prims: &[Primitive], trim: f64) -> Result<Vec<Vec<usize>>> {
+/// For each primitive, the indices of the points it owns ([`Ownership`]).
+fn assign(
+    points: &[Point3<f64>],
+    prims: &[Primitive],
+    trim: f64,
+    tie: f64,
+) -> Result<Vec<Vec<usize>>> {
     let mut groups = vec![Vec::new(); prims.len()];
-    if prims.is_empty() {
-        return Ok(groups);
-    }
-    let index = PrimitiveIndex::new(prims)?;
-    let owner: Vec<Option<usize>> = points
-        .par_iter()
-        .map(|p| index.nearest(p).filter(|(_, d)| *d <= trim).map(|(i, _)| i))
-        .collect();
-    for (j, o) in owner.into_iter().enumerate() {
+    for (j, o) in owners(points, prims, trim, tie)?.into_iter().enumerate() {
         if let Some(i) = o {
             groups[i].push(j);
         }
@@ -493,16 +763,44 @@ pub fn size_tangents(shape: &Shape, x: &Point3<f64>) -> Vec<Vector3<f64>> {
     }
 }
 
+/// The scene axis a primitive may not turn about: a square's or disk's normal, so that a
+/// patch tilts onto its points but keeps its in-plane orientation from the lattice frame
+/// (for a disk that turn is a symmetry; for a square it is all but unconstrained inside
+/// the data, and left free it lets patches spin into each other's shares).
+fn locked_axis(p: &Primitive) -> Option<Vector3<f64>> {
+    match p.shape {
+        Shape::Square { .. } | Shape::Disk { .. } => Some(p.pose.rotation * Vector3::z()),
+        _ => None,
+    }
+}
+
+/// Clouds larger than this are refined on an evenly strided subset of this many points
+/// (see [`refine`]); the binary chamfer before and after is still the whole cloud's.
+pub const MAX_REFINE_POINTS: usize = 50_000;
+
 /// Assignment rounds when neighbours are re-refined in a merge trial.
 const MERGE_ROUNDS: usize = 3;
 
 /// Residuals below this (relative to the primitive's size) carry no direction and are skipped.
 const TINY: f64 = 1e-12;
 
+/// At most this many of a primitive's assigned points enter its LM problem (evenly
+/// strided, each weighted by `assigned / used`): the sum over all of them is estimated
+/// well by a few thousand, and refinement time stays independent of the cloud's density.
+pub const MAX_FIT_POINTS: usize = 4096;
+
 /// The LM problem of one primitive: its assigned points, the cloud for its samples, size bounds.
 struct Fitter<'a> {
     ctx: &'a RefineContext<'a>,
-    points: &'a [Point3<f64>],
+    weights: &'a Weights,
+    /// All assigned points: the samples' distances are measured to these.
+    own: &'a [Point3<f64>],
+    /// kd-tree over `own`.
+    own_index: PointIndex,
+    /// The assigned points, strided to at most [`MAX_FIT_POINTS`].
+    points: Vec<Point3<f64>>,
+    /// Weight of one squared point residual: `w_point · assigned / used`.
+    point_weight: f64,
     limits: &'a [(f64, f64)],
 }
 
@@ -543,14 +841,38 @@ impl Normal {
 impl<'a> Fitter<'a> {
     fn new(
         ctx: &'a RefineContext<'a>,
-        points: &'a [Point3<f64>],
+        weights: &'a Weights,
+        assigned: &'a [Point3<f64>],
         limits: &'a [(f64, f64)],
     ) -> Self {
+        let stride = assigned.len().div_ceil(MAX_FIT_POINTS).max(1);
+        let points: Vec<Point3<f64>> = assigned.iter().step_by(stride).copied().collect();
+        let point_weight = weights.point * assigned.len() as f64 / points.len().max(1) as f64;
         Fitter {
             ctx,
+            weights,
+            own: assigned,
+            own_index: PointIndex::new(assigned),
             points,
+            point_weight,
             limits,
         }
+    }
+
+    /// The nearest point to `x` among the assigned ones (the whole cloud when none are):
+    /// `(point, squared distance)`.
+    fn nearest_own(&self, x: &Point3<f64>) -> Option<(Point3<f64>, f64)> {
+        if self.own.is_empty() {
+            let (j, d2) = self.ctx.index.nearest(x)?;
+            return Some((self.ctx.points[j as usize], d2));
+        }
+        let (j, d2) = self.own_index.nearest(x)?;
+        Some((self.own[j as usize], d2))
+    }
+
+    /// The refinement cost `F` of `p` on this problem's points.
+    fn cost(&self, p: &Primitive) -> f64 {
+        self.normal(p, false).cost
     }
 
     /// The Jacobian row of a residual with direction `dir` (`∂r/∂x = dir`) at scene
@@ -559,7 +881,11 @@ impl<'a> Fitter<'a> {
         let tangents = size_tangents(&p.shape, local);
         let mut row = Row::zeros();
         let lever = x.coords - p.pose.translation;
-        row.fixed_rows_mut::<3>(0).copy_from(&lever.cross(dir));
+        let mut spin = lever.cross(dir);
+        if let Some(n) = locked_axis(p) {
+            spin -= n * spin.dot(&n);
+        }
+        row.fixed_rows_mut::<3>(0).copy_from(&spin);
         row.fixed_rows_mut::<3>(3).copy_from(dir);
         for (k, t) in tangents.iter().enumerate().take(MAX_PARAMS - 6) {
             row[6 + k] = dir.dot(&(p.pose.rotation * t * p.pose.scale));
@@ -572,8 +898,8 @@ impl<'a> Fitter<'a> {
         let m = 6 + sizes(&p.shape).len();
         let mut out = Normal::new(m);
         let tiny = TINY * p.bounding_radius().max(1.0);
-        let w_point = self.ctx.chamfer.point_weight;
-        for y in self.points {
+        let w_point = self.point_weight;
+        for y in &self.points {
             let c = p.closest_point(y);
             let r = (y - c).norm();
             if r <= tiny {
@@ -587,20 +913,19 @@ impl<'a> Fitter<'a> {
                 out.cost += w_point * r * r;
             }
         }
-        let w_prim = self.ctx.chamfer.primitive_weight;
+        let w_prim = self.weights.sample;
         let spacing = self.ctx.sample_spacing / p.pose.scale;
         for local in p.shape.sample_surface(spacing) {
             let x = p.pose.to_scene(&local);
-            let Some((j, _)) = self.ctx.index.nearest(&x) else {
+            let Some((q, d2)) = self.nearest_own(&x) else {
                 continue;
             };
-            let q = self.ctx.points[j as usize];
-            let r = (x - q).norm();
+            let r = self.weights.sample_residual(d2);
             if r <= tiny {
                 continue;
             }
             if jacobian {
-                let row = self.row(p, &x, &local, &((x - q) / r));
+                let row = self.row(p, &x, &local, &((x - q) / (x - q).norm()));
                 out.add(w_prim, r, &row);
             } else {
                 out.cost += w_prim * r * r;
@@ -611,7 +936,10 @@ impl<'a> Fitter<'a> {
 
     /// `p` moved by the step `delta` (ω, τ, η), or `None` when the result is invalid.
     fn apply(&self, p: &Primitive, delta: &DVector<f64>) -> Option<Primitive> {
-        let omega = Vector3::new(delta[0], delta[1], delta[2]);
+        let mut omega = Vector3::new(delta[0], delta[1], delta[2]);
+        if let Some(n) = locked_axis(p) {
+            omega -= n * omega.dot(&n);
+        }
         let tau = Vector3::new(delta[3], delta[4], delta[5]);
         let s: Vec<f64> = sizes(&p.shape)
             .iter()
@@ -704,9 +1032,26 @@ mod tests {
         RefineContext {
             points,
             index,
+            point_spacing: median_spacing(points, index, 2000).unwrap(),
             sample_spacing: 0.05,
             chamfer,
+            shapes: &[],
+            frame: UnitQuaternion::identity(),
         }
+    }
+
+    /// Points on a regular `n × m` grid of spacing `h` at z = 0, centred.
+    fn grid(n: usize, m: usize, h: f64) -> Vec<Point3<f64>> {
+        (0..n)
+            .flat_map(|i| (0..m).map(move |j| (i, j)))
+            .map(|(i, j)| {
+                Point3::new(
+                    (i as f64 - (n - 1) as f64 / 2.0) * h,
+                    (j as f64 - (m - 1) as f64 / 2.0) * h,
+                    0.0,
+                )
+            })
+            .collect()
     }
 
     #[test]
@@ -758,7 +1103,7 @@ mod tests {
         let start = Primitive::new(
             Shape::Square { side: 0.8 },
             Pose::new(
-                UnitQuaternion::from_euler_angles(0.08, -0.05, 0.3),
+                UnitQuaternion::from_euler_angles(0.08, -0.05, 0.0),
                 Vector3::new(0.07, -0.05, 0.04),
             ),
         );
@@ -781,6 +1126,149 @@ mod tests {
             panic!("type changed")
         };
         assert!((side - 1.0).abs() < 0.05, "side {side}");
+    }
+
+    #[test]
+    fn a_square_keeps_its_in_plane_orientation() {
+        let points = grid_square(1.0, 40, 0.0);
+        let index = PointIndex::new(&points);
+        let chamfer = ChamferOptions {
+            cap: 0.25,
+            ..Default::default()
+        };
+        let ctx = context(&points, &index, &chamfer);
+        let turned = UnitQuaternion::from_euler_angles(0.0, 0.0, 0.3);
+        let start = Primitive::new(
+            Shape::Square { side: 1.0 },
+            Pose::new(turned, Vector3::new(0.03, 0.0, 0.02)),
+        );
+        let out = refine(
+            &ctx,
+            std::slice::from_ref(&start),
+            &RefineOptions::default(),
+        )
+        .unwrap();
+        let p = &out.primitives[0];
+        // The normal is unchanged (the data are flat at z = 0), so is the turn about it.
+        assert!(p.pose.rotation.angle_to(&turned) < 1e-6, "{p:?}");
+        assert!(p.pose.translation.z.abs() < 1e-6, "{p:?}");
+    }
+
+    /// Two squares over one flat strip with a gap between them and margins at both ends:
+    /// refinement closes the gap and reaches the ends (samples within the cloud's point
+    /// spacing of its points cost nothing), without the two overlapping.
+    #[test]
+    fn neighbouring_squares_close_the_gap_between_them() {
+        let h = 0.02;
+        let points = grid(100, 50, h); // 2 m × 1 m
+        let index = PointIndex::new(&points);
+        let chamfer = ChamferOptions {
+            cap: 0.25,
+            ..Default::default()
+        };
+        let ctx = RefineContext {
+            sample_spacing: h,
+            ..context(&points, &index, &chamfer)
+        };
+        let square = |x: f64| {
+            Primitive::new(
+                Shape::Square { side: 0.8 },
+                Pose::new(UnitQuaternion::identity(), Vector3::new(x, 0.0, 0.0)),
+            )
+        };
+        let out = refine(
+            &ctx,
+            &[square(-0.5), square(0.5)],
+            &RefineOptions {
+                merge: false,
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(out.primitives.len(), 2);
+        let worst = points
+            .iter()
+            .map(|y| {
+                out.primitives
+                    .iter()
+                    .map(|p| p.distance(y))
+                    .fold(f64::INFINITY, f64::min)
+            })
+            .fold(0.0, f64::max);
+        assert!(worst < h / 2.0, "a point is {worst} from the model");
+        // x extents of the two squares: they meet near x = 0 (within a point spacing).
+        let extent = |p: &Primitive| {
+            let Shape::Square { side } = p.shape else {
+                panic!("type changed")
+            };
+            (
+                p.pose.translation.x - side / 2.0,
+                p.pose.translation.x + side / 2.0,
+            )
+        };
+        let (a, b) = (extent(&out.primitives[0]), extent(&out.primitives[1]));
+        let (left, right) = if a.0 < b.0 { (a, b) } else { (b, a) };
+        assert!(left.1 - right.0 < h, "overlap {}", left.1 - right.0);
+    }
+
+    /// An elbow laid on a straight tube becomes a cylinder when cylinders are configured.
+    #[test]
+    fn an_elbow_on_a_straight_tube_is_retyped_to_a_cylinder() {
+        let tube = Primitive::new(
+            Shape::Cylinder {
+                length: 1.0,
+                radius: 0.1,
+            },
+            Pose::new(UnitQuaternion::identity(), Vector3::zeros()),
+        );
+        let points = tube.sample_surface(0.02);
+        let index = PointIndex::new(&points);
+        let chamfer = ChamferOptions {
+            cap: 0.25,
+            ..Default::default()
+        };
+        let shapes = [
+            Shape::Cylinder {
+                length: 1.0,
+                radius: 0.1,
+            },
+            Shape::Elbow {
+                bend: 0.5,
+                radius: 0.1,
+            },
+        ];
+        let ctx = RefineContext {
+            shapes: &shapes,
+            ..context(&points, &index, &chamfer)
+        };
+        // A quarter torus whose arc starts on the tube's axis, tangent to it.
+        let elbow = Primitive::new(
+            shapes[1].clone(),
+            Pose::new(
+                UnitQuaternion::from_axis_angle(&Vector3::y_axis(), -std::f64::consts::FRAC_PI_2),
+                Vector3::new(-0.5, 0.0, -0.25),
+            ),
+        );
+        let fit = |retype: bool| {
+            refine(
+                &ctx,
+                std::slice::from_ref(&elbow),
+                &RefineOptions {
+                    retype,
+                    ..Default::default()
+                },
+            )
+            .unwrap()
+        };
+        let worst = |p: &Primitive| points.iter().map(|y| p.distance(y)).fold(0.0, f64::max);
+        let kept = fit(false);
+        assert_eq!(kept.primitives[0].shape.kind(), ShapeKind::Elbow);
+        let out = fit(true);
+        let p = &out.primitives[0];
+        assert_eq!(p.shape.kind(), ShapeKind::Cylinder, "{p:?}");
+        assert!(worst(p) < 0.01, "worst {}; {p:?}", worst(p));
+        assert!(worst(&kept.primitives[0]) > 0.05);
+        assert!(out.loss_after < kept.loss_after);
     }
 
     #[test]
