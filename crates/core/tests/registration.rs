@@ -343,9 +343,40 @@ fn bad_options_are_errors() {
             scale: Some((2.0, 1.0)),
             ..Default::default()
         },
+        RegisterOptions {
+            translation: true,
+            vote_bin: 0.0,
+            ..Default::default()
+        },
+        RegisterOptions {
+            translation: true,
+            vote_keep: 0,
+            ..Default::default()
+        },
+        RegisterOptions {
+            basin_share: 0.5,
+            ..Default::default()
+        },
     ] {
         assert!(register(&scene.cloud, &mesh, &options, &Silent).is_err());
     }
     let empty = primfit_core::PointCloud::default();
     assert!(register(&empty, &mesh, &RegisterOptions::default(), &Silent).is_err());
+    // Odd but valid vote settings degrade, they do not panic: no sample votes (spacing
+    // beyond the model), or one huge vote cell.
+    for (vote_spacing, vote_bin) in [(1e6, 0.08), (0.04, 1e6)] {
+        let options = RegisterOptions {
+            translation: true,
+            count: Some(1),
+            initial_particles: 50,
+            vote_keep: 20,
+            particles: 20,
+            max_rounds: 2,
+            vote_spacing,
+            vote_bin,
+            ..Default::default()
+        };
+        let r = register(&scene.cloud, &mesh, &options, &Silent).unwrap();
+        assert_eq!(r.objects.len(), 1);
+    }
 }
