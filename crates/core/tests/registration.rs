@@ -117,6 +117,33 @@ fn full_pose_at_95_percent_outliers() {
     check(&asymmetric_object(), 1900, true, 0..5, 5);
 }
 
+/// The same seed gives the same full pose (votes, filter and ICP are deterministic).
+#[test]
+fn full_pose_is_deterministic_for_a_seed() {
+    let mesh = asymmetric_object();
+    let size = model_size(&mesh);
+    let scene = registration(
+        &mesh,
+        &RegistrationParams {
+            outliers: 400,
+            translation: 0.25 * size,
+            seed: 7,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let options = RegisterOptions {
+        translation: true,
+        count: Some(1),
+        seed: 7,
+        ..Default::default()
+    };
+    let a = register(&scene.cloud, &mesh, &options, &Silent).unwrap();
+    let b = register(&scene.cloud, &mesh, &options, &Silent).unwrap();
+    assert_eq!(a.objects[0].primitive.pose, b.objects[0].primitive.pose);
+    assert_eq!(a.objects[0].filter_pose, b.objects[0].filter_pose);
+}
+
 /// `--scale`: scenes whose object is scaled by a known factor (50, 80 and 90 %
 /// outliers); the scale is searched in (0.5, 2) together with the full pose. Bounds:
 /// scale within 1 % of the truth, rotation < 3°, translation < 1 % of the scaled
