@@ -6,12 +6,14 @@
 //! ```text
 //! cargo run --release --example registration_bench -- [--levels 0.5,0.8,0.9,0.95]
 //!     [--seeds 20] [--inliers 100] [--translation T] [--model mesh.ply] [--scenes DIR]
-//!     [--rotation-only]
+//!     [--rotation-only] [--scale LO,HI]
 //! ```
 //!
 //! `--translation T`: the true translation is uniform in `[-T·size, T·size]³` (size =
-//! diagonal of the model's bounding box); default 0.25. Errors: rotation angle (degrees)
-//! and translation distance relative to the model size.
+//! diagonal of the model's bounding box); default 0.25. `--scale LO,HI`: the object is
+//! scaled by a factor uniform in `[LO, HI]` and the scale is searched in (0.5, 2).
+//! Errors: rotation angle (degrees) and translation distance relative to the model size
+//! (scaled by the true scale); with `--scale` also the relative scale error.
 
 use std::path::PathBuf;
 use std::time::Instant;
@@ -41,6 +43,10 @@ fn main() {
     let rotation_only = args.iter().any(|a| a == "--rotation-only");
     let rel_t: f64 = get("--translation").map_or(0.25, |s| s.parse().expect("translation"));
     let scenes = get("--scenes").map(PathBuf::from);
+    let scale: Option<(f64, f64)> = get("--scale").map(|s| {
+        let v: Vec<f64> = s.split(',').map(|x| x.parse().expect("scale")).collect();
+        (v[0], v[1])
+    });
     let mesh = match get("--model") {
         Some(p) => {
             MeshShape::new(p.clone(), io::read_mesh(p.as_ref()).expect("model")).expect("mesh")
@@ -66,6 +72,7 @@ fn main() {
                 inliers,
                 outliers,
                 translation: if rotation_only { 0.0 } else { rel_t * size },
+                scale,
                 seed,
                 ..Default::default()
             };
@@ -89,6 +96,7 @@ fn main() {
             let d = RegisterOptions::default();
             let options = RegisterOptions {
                 translation: !rotation_only,
+                scale: scale.map(|_| (0.5, 2.0)),
                 count: Some(1),
                 seed,
                 initial_particles: get("--initial")
@@ -124,19 +132,22 @@ fn main() {
             let o = &result.objects[0];
             let pose = o.primitive.pose;
             let rot = pose.rotation.angle_to(&truth.rotation).to_degrees();
-            let trans = (pose.translation - truth.translation).norm() / size;
+            let trans = (pose.translation - truth.translation).norm() / (size * truth.scale);
+            let scale_rel = (pose.scale - truth.scale).abs() / truth.scale;
             let frot = o
                 .filter_pose
                 .rotation
                 .angle_to(&truth.rotation)
                 .to_degrees();
-            let ftrans = (o.filter_pose.translation - truth.translation).norm() / size;
+            let ftrans =
+                (o.filter_pose.translation - truth.translation).norm() / (size * truth.scale);
             println!(
                 "{}",
                 json!({"method": "primfit", "level": level, "seed": seed, "rotation_deg": rot,
                     "translation_rel": trans, "seconds": seconds, "existence": o.existence,
                     "inlier_share": o.inlier_share, "filter_rotation_deg": frot,
-                    "filter_translation_rel": ftrans, "rounds": o.rounds.len(), "cpu_seconds": cpu})
+                    "filter_translation_rel": ftrans, "rounds": o.rounds.len(), "cpu_seconds": cpu,
+                    "scale_rel": scale_rel})
             );
         }
     }

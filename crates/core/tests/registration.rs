@@ -117,6 +117,33 @@ fn full_pose_at_95_percent_outliers() {
     check(&asymmetric_object(), 1900, true, 0..5, 5);
 }
 
+/// The same seed gives the same full pose (votes, filter and ICP are deterministic).
+#[test]
+fn full_pose_is_deterministic_for_a_seed() {
+    let mesh = asymmetric_object();
+    let size = model_size(&mesh);
+    let scene = registration(
+        &mesh,
+        &RegistrationParams {
+            outliers: 400,
+            translation: 0.25 * size,
+            seed: 7,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let options = RegisterOptions {
+        translation: true,
+        count: Some(1),
+        seed: 7,
+        ..Default::default()
+    };
+    let a = register(&scene.cloud, &mesh, &options, &Silent).unwrap();
+    let b = register(&scene.cloud, &mesh, &options, &Silent).unwrap();
+    assert_eq!(a.objects[0].primitive.pose, b.objects[0].primitive.pose);
+    assert_eq!(a.objects[0].filter_pose, b.objects[0].filter_pose);
+}
+
 /// `--scale`: scenes whose object is scaled by a known factor (50, 80 and 90 %
 /// outliers); the scale is searched in (0.5, 2) together with the full pose. Bounds:
 /// scale within 1 % of the truth, rotation < 3°, translation < 1 % of the scaled
@@ -343,9 +370,40 @@ fn bad_options_are_errors() {
             scale: Some((2.0, 1.0)),
             ..Default::default()
         },
+        RegisterOptions {
+            translation: true,
+            vote_bin: 0.0,
+            ..Default::default()
+        },
+        RegisterOptions {
+            translation: true,
+            vote_keep: 0,
+            ..Default::default()
+        },
+        RegisterOptions {
+            basin_share: 0.5,
+            ..Default::default()
+        },
     ] {
         assert!(register(&scene.cloud, &mesh, &options, &Silent).is_err());
     }
     let empty = primfit_core::PointCloud::default();
     assert!(register(&empty, &mesh, &RegisterOptions::default(), &Silent).is_err());
+    // Odd but valid vote settings degrade, they do not panic: no sample votes (spacing
+    // beyond the model), or one huge vote cell.
+    for (vote_spacing, vote_bin) in [(1e6, 0.08), (0.04, 1e6)] {
+        let options = RegisterOptions {
+            translation: true,
+            count: Some(1),
+            initial_particles: 50,
+            vote_keep: 20,
+            particles: 20,
+            max_rounds: 2,
+            vote_spacing,
+            vote_bin,
+            ..Default::default()
+        };
+        let r = register(&scene.cloud, &mesh, &options, &Silent).unwrap();
+        assert_eq!(r.objects.len(), 1);
+    }
 }

@@ -112,14 +112,13 @@ pub struct RegisterOptions {
     /// translation); 0 = draw translations from the prior instead.
     pub vote_peaks: usize,
     /// With translation votes: the candidates (rotation, vote peak) with the most votes
-    /// that form the first population, each refined ([`vote::fine_peak`],
-    /// [`vote::mean_shift`]).
+    /// that form the first population, each translation refined at point level
+    /// ([`vote::refine_peak`]).
     pub vote_keep: usize,
     /// Bin (grid cell) of the translation vote, fraction of the model size.
     pub vote_bin: f64,
     /// Spacing of the model samples that vote, fraction of the model size.
     pub vote_spacing: f64,
-
     /// Particles of later rounds.
     pub particles: usize,
     /// Round limit per object.
