@@ -4,34 +4,31 @@
 //! After the lattice fit has decided which candidates exist, each primitive `P` is moved
 //! off the lattice to lower
 //!
-//! `F(P) = w_point Σ_{y ∈ A(P)} d(y, P)² + w_s Σ_{x ∈ σ(P)} max(0, d(x, A(P)) − h)²`,
+//! `F(P) = w_point Σ_{y ∈ A(P)} d(y, P)² + w_s Σ_{x ∈ σ(P)} max(0, d(x, D) − h)²`,
 //!
-//! where `A(P)` are the input points `P` owns (below; redone every round; points farther
-//! than the trim distance from every primitive are outliers and pull nothing), `σ(P)` are
-//! `P`'s surface samples at the fitter's sample spacing `s`, and `h` is the cloud's median
-//! point spacing. Units: `F` is in scene units².
+//! where `A(P)` are the input points whose nearest fitted surface is `P` and lies within
+//! the trim distance (the assignment is redone every round; farther points are outliers
+//! and pull nothing), `σ(P)` are `P`'s surface samples at the fitter's sample spacing `s`,
+//! `D` is the whole cloud and `h` its median point spacing. Units: `F` is in scene units².
 //!
 //! **Why not the plain chamfer.** In the binary chamfer a sample's cost is its squared
-//! distance to the nearest input point *anywhere*. Inside the data that is not zero but
-//! about `h²/6` (regular sampling) to `h²/ln 2` (random sampling) per sample: the term
-//! charges for area, and each patch shrinks until the points it leaves behind cost as much
-//! as the samples it saves. Neighbouring squares then end up with gaps of about a point
-//! spacing between them (the defect of issue 8's first real-scan picture). The second term
-//! above keeps what the sample term is for, stopping a patch from growing past the data,
-//! without that bias:
+//! distance to the nearest input point. Inside the data that is not zero but about `h²/6`
+//! (regular sampling) to `h²/ln 2` (random sampling) per sample: the term charges for
+//! area, and each patch shrinks until the points it leaves behind cost as much as the
+//! samples it saves. Neighbouring squares then end up with gaps of about a point spacing
+//! between them (the defect of issue 8's first real-scan picture). The second term above
+//! keeps what the sample term is for, stopping a patch from growing past the data, without
+//! that bias:
 //!
 //! - *dead zone*: a sample within `h` of the data is on the data and costs nothing;
-//! - *own points*: a sample's distance is measured to `P`'s own points, so a patch that
-//!   grows over a neighbour's share pays for it, and two patches meet where their shares do;
 //! - *balance*: `w_s = w_prim · s² J / A` (`J` points, `A` the total area of the input
 //!   primitives): samples count as if the surfaces carried as many samples as the cloud
 //!   has points, the balance of the DESIGN §4 chamfer, whatever the sample spacing.
 //!
-//! **Ownership.** A point belongs to the primitive whose surface is nearest, within the
-//! trim distance; among the primitives whose surfaces are within `h` of that distance
-//! (overlapping coplanar patches, where noise would otherwise decide), to the one whose
-//! centre is nearest relative to its bounding radius, so overlaps split along their
-//! bisector.
+//! Overlap between patches is not charged. (Measuring a sample's distance to `P`'s own
+//! points instead, so that overlapping patches would pay, was tried: on randomly sampled
+//! data the own points thin out at the edge of a patch's share, every patch shrinks
+//! again, and the bundled hallway fitted worse than with the plain chamfer.)
 //!
 //! **Parameters.** A small rotation `ω` (applied on the left, about `P`'s origin), a
 //! translation `τ`, and `η_k = ln s_k` for each size `s_k` (so sizes stay positive), each
@@ -39,7 +36,7 @@
 //! size for re-typed primitives). Squares and disks do not turn about their normal: they
 //! tilt onto their points but keep the lattice frame's in-plane orientation (for a disk
 //! that turn is a symmetry; a square's is hardly constrained inside the data, and left
-//! free it lets patches spin into each other's shares). An elbow keeps `radius < bend`;
+//! free, the patches of a plane spin to all angles). An elbow keeps `radius < bend`;
 //! meshes refine their pose only.
 //!
 //! **Jacobians in closed form**, from the exact closest point `c` ([`Primitive::closest_point`]):
@@ -50,7 +47,7 @@
 //! the local point itself; cylinder: its axial component for the length and its radial
 //! one for the radius; elbow: the centre-line point for the bend, the tube offset for the
 //! radius), rotated into the scene. A sample residual `r = |x − q| − h > 0` (with `q` its
-//! nearest own point) has `∂r/∂θ = m · ∂x/∂θ`, `m = (x − q)/|x − q|`.
+//! nearest input point) has `∂r/∂θ = m · ∂x/∂θ`, `m = (x − q)/|x − q|`.
 //!
 //! Each step solves `(JᵀWJ + λ (diag JᵀWJ + ε I)) δ = −JᵀWr` and is kept only if `F`
 //! decreases (then λ ÷ 3, else λ × 4). Primitives are refined independently and in
@@ -77,9 +74,13 @@
 //! its neighbours were refined with its points taken. So each primitive, fewest points
 //! first, is tried for removal *with* its neighbours (the primitives that would own its
 //! points) re-refined on the points they would then own; the removal is kept when the
-//! local cost (the points of the primitive and of its neighbours, each at
-//! `min(d², d_cap)`, plus the samples of all primitives involved, with the dead zone and
-//! balance above, measured to the whole cloud) does not increase.
+//! local chamfer (the points of the primitive and of its neighbours, each at
+//! `min(d², d_cap)`, plus the squared distances to the cloud of the samples of all
+//! primitives involved, with the balance above but no dead zone) does not increase.
+//! Without a dead zone, a neighbour grown over the removed primitive's points pays for its
+//! larger area, so a merge must lower the chamfer; with it, any primitive that neighbours
+//! could cover would go, and a hallway of 1 m squares would come back as fewer squares of
+//! up to 2 m.
 
 use std::time::Instant;
 
@@ -262,7 +263,7 @@ fn refine_on(
     // primitives it judges have already settled onto their points.
     let retype_after = (options.retype && options.rounds > 0).then(|| options.rounds.min(2) - 1);
     for round in 0..options.rounds {
-        let groups = assign(ctx.points, &current, trim, ctx.point_spacing)?;
+        let groups = assign(ctx.points, &current, trim)?;
         current = current
             .par_iter()
             .zip(&groups)
@@ -273,7 +274,7 @@ fn refine_on(
             })
             .collect();
         if retype_after == Some(round) {
-            let groups = assign(ctx.points, &current, trim, ctx.point_spacing)?;
+            let groups = assign(ctx.points, &current, trim)?;
             let switched: Vec<Option<Retyped>> = current
                 .par_iter()
                 .zip(&groups)
@@ -430,7 +431,7 @@ impl Merger<'_> {
         prims: Vec<Primitive>,
         limits: Vec<Vec<(f64, f64)>>,
     ) -> Result<(Vec<Primitive>, Vec<usize>)> {
-        let mut owner = owners(self.ctx.points, &prims, self.trim, self.ctx.point_spacing)?;
+        let mut owner = owners(self.ctx.points, &prims, self.trim)?;
         let mut count = vec![0usize; prims.len()];
         for o in owner.iter().flatten() {
             count[*o] += 1;
@@ -452,13 +453,7 @@ impl Merger<'_> {
                     }
                 }
                 let model: Vec<Primitive> = alive.iter().map(|a| a.1.clone()).collect();
-                let fresh = owners_of(
-                    self.ctx.points,
-                    &region,
-                    &model,
-                    self.trim,
-                    self.ctx.point_spacing,
-                )?;
+                let fresh = owners_of(self.ctx.points, &region, &model, self.trim)?;
                 for (&j, o) in region.iter().zip(fresh) {
                     owner[j] = o;
                 }
@@ -483,13 +478,7 @@ impl Merger<'_> {
         let mut rest: Vec<(usize, Primitive)> = alive.to_vec();
         rest.remove(pos);
         let rest_model: Vec<Primitive> = rest.iter().map(|a| a.1.clone()).collect();
-        let heirs = owners_of(
-            self.ctx.points,
-            &mine,
-            &rest_model,
-            self.trim,
-            self.ctx.point_spacing,
-        )?;
+        let heirs = owners_of(self.ctx.points, &mine, &rest_model, self.trim)?;
         let mut neighbours: Vec<usize> = heirs.iter().flatten().copied().collect();
         neighbours.sort_unstable();
         neighbours.dedup();
@@ -521,13 +510,7 @@ impl Merger<'_> {
         let mut trial = rest.clone();
         for _ in 0..MERGE_ROUNDS {
             let model: Vec<Primitive> = trial.iter().map(|a| a.1.clone()).collect();
-            let region_owner = owners_of(
-                self.ctx.points,
-                &region,
-                &model,
-                self.trim,
-                self.ctx.point_spacing,
-            )?;
+            let region_owner = owners_of(self.ctx.points, &region, &model, self.trim)?;
             let refitted: Vec<Primitive> = neighbours
                 .par_iter()
                 .map(|&k| {
@@ -551,7 +534,8 @@ impl Merger<'_> {
         Ok((after <= before).then_some((trial, region)))
     }
 
-    /// `w_point Σ_{j ∈ region} min(d(y_j, model)², d_cap) + w_prim Σ_{i ∈ sampled} Σ_x d(x, D)²`.
+    /// `w_point Σ_{j ∈ region} min(d(y_j, model)², d_cap) + w_s Σ_{i ∈ sampled} Σ_x d(x, D)²`
+    /// (`w_s` of [`Weights`], no dead zone: see the module docs).
     fn local_cost(
         &self,
         region: &[usize],
@@ -581,108 +565,45 @@ impl Merger<'_> {
                 * p.sample_surface(self.ctx.sample_spacing)
                     .iter()
                     .filter_map(|x| self.ctx.index.nearest(x))
-                    .map(|(_, d2)| self.weights.sample_residual(d2).powi(2))
+                    .map(|(_, d2)| d2)
                     .sum::<f64>();
         }
         Ok(cost)
     }
 }
 
-/// Who owns a point: the primitive whose surface is nearest, within the trim distance;
-/// among the primitives whose surfaces are within `tie` of that nearest distance, the one
-/// whose centre is nearest relative to its bounding radius (`|y − c| / R`). Overlapping
-/// coplanar patches are thus split along their bisector rather than by noise, and the
-/// samples term (measured to a primitive's own points, see the module docs) holds each
-/// patch to its share.
-struct Ownership<'a> {
-    prims: &'a [Primitive],
-    index: PrimitiveIndex<'a>,
-    /// kd-tree over the primitives' centres.
-    centres: PointIndex,
-    max_radius: f64,
-    trim: f64,
-    tie: f64,
-}
-
-impl<'a> Ownership<'a> {
-    fn new(prims: &'a [Primitive], trim: f64, tie: f64) -> Result<Self> {
-        let centres: Vec<Point3<f64>> = prims.iter().map(Primitive::center).collect();
-        Ok(Ownership {
-            prims,
-            index: PrimitiveIndex::new(prims)?,
-            centres: PointIndex::new(&centres),
-            max_radius: prims
-                .iter()
-                .map(Primitive::bounding_radius)
-                .fold(0.0, f64::max),
-            trim,
-            tie,
-        })
-    }
-
-    /// The owner of `y`, if any.
-    fn owner(&self, y: &Point3<f64>) -> Option<usize> {
-        let (best, d0) = self.index.nearest(y).filter(|(_, d)| *d <= self.trim)?;
-        if self.tie <= 0.0 {
-            return Some(best);
-        }
-        let limit = d0 + self.tie;
-        let reach = limit + self.max_radius;
-        let relative = |k: usize| {
-            let p = &self.prims[k];
-            (y - p.center()).norm() / p.bounding_radius().max(f64::MIN_POSITIVE)
-        };
-        let mut owner = (relative(best), best);
-        for (k, c2) in self.centres.within(y, reach * reach) {
-            let k = k as usize;
-            let p = &self.prims[k];
-            if k == best || c2.sqrt() - p.bounding_radius() > limit || p.distance(y) > limit {
-                continue;
-            }
-            let candidate = (relative(k), k);
-            if candidate.0 < owner.0 || (candidate.0 == owner.0 && k < owner.1) {
-                owner = candidate;
-            }
-        }
-        Some(owner.1)
-    }
-}
-
-/// For each point, its owner among `prims` ([`Ownership`]).
-fn owners(
-    points: &[Point3<f64>],
-    prims: &[Primitive],
-    trim: f64,
-    tie: f64,
-) -> Result<Vec<Option<usize>>> {
+/// For each point, its nearest primitive within `trim` (or `None`).
+fn owners(points: &[Point3<f64>], prims: &[Primitive], trim: f64) -> Result<Vec<Option<usize>>> {
     let all: Vec<usize> = (0..points.len()).collect();
-    owners_of(points, &all, prims, trim, tie)
+    owners_of(points, &all, prims, trim)
 }
 
-/// For each of the points `which`, its owner among `prims` ([`Ownership`]).
+/// For each of the points `which`, its nearest primitive within `trim` (or `None`).
 fn owners_of(
     points: &[Point3<f64>],
     which: &[usize],
     prims: &[Primitive],
     trim: f64,
-    tie: f64,
 ) -> Result<Vec<Option<usize>>> {
     if prims.is_empty() {
         return Ok(vec![None; which.len()]);
     }
-    let own = Ownership::new(prims, trim, tie)?;
-    Ok(which.par_iter().map(|&j| own.owner(&points[j])).collect())
+    let index = PrimitiveIndex::new(prims)?;
+    Ok(which
+        .par_iter()
+        .map(|&j| {
+            index
+                .nearest(&points[j])
+                .filter(|(_, d)| *d <= trim)
+                .map(|(i, _)| i)
+        })
+        .collect())
 }
 
-/// For each primitive, the indices of the points it owns ([`Ownership`]).
-fn assign(
-    points: &[Point3<f64>],
-    prims: &[Primitive],
-    trim: f64,
-    tie: f64,
-) -> Result<Vec<Vec<usize>>> {
+/// For each primitive, the indices of the points whose nearest primitive it is, within `trim`.
+fn assign(points: &[Point3<f64>], prims: &[Primitive], trim: f64) -> Result<Vec<Vec<usize>>> {
     let mut groups = vec![Vec::new(); prims.len()];
-    for (j, o) in owners(points, prims, trim, tie)?.into_iter().enumerate() {
+    for (j, o) in owners(points, prims, trim)?.into_iter().enumerate() {
         if let Some(i) = o {
             groups[i].push(j);
         }
@@ -766,7 +687,7 @@ pub fn size_tangents(shape: &Shape, x: &Point3<f64>) -> Vec<Vector3<f64>> {
 /// The scene axis a primitive may not turn about: a square's or disk's normal, so that a
 /// patch tilts onto its points but keeps its in-plane orientation from the lattice frame
 /// (for a disk that turn is a symmetry; for a square it is all but unconstrained inside
-/// the data, and left free it lets patches spin into each other's shares).
+/// the data, and left free the patches of a plane spin to all angles).
 fn locked_axis(p: &Primitive) -> Option<Vector3<f64>> {
     match p.shape {
         Shape::Square { .. } | Shape::Disk { .. } => Some(p.pose.rotation * Vector3::z()),
@@ -793,10 +714,6 @@ pub const MAX_FIT_POINTS: usize = 4096;
 struct Fitter<'a> {
     ctx: &'a RefineContext<'a>,
     weights: &'a Weights,
-    /// All assigned points: the samples' distances are measured to these.
-    own: &'a [Point3<f64>],
-    /// kd-tree over `own`.
-    own_index: PointIndex,
     /// The assigned points, strided to at most [`MAX_FIT_POINTS`].
     points: Vec<Point3<f64>>,
     /// Weight of one squared point residual: `w_point · assigned / used`.
@@ -842,7 +759,7 @@ impl<'a> Fitter<'a> {
     fn new(
         ctx: &'a RefineContext<'a>,
         weights: &'a Weights,
-        assigned: &'a [Point3<f64>],
+        assigned: &[Point3<f64>],
         limits: &'a [(f64, f64)],
     ) -> Self {
         let stride = assigned.len().div_ceil(MAX_FIT_POINTS).max(1);
@@ -851,23 +768,18 @@ impl<'a> Fitter<'a> {
         Fitter {
             ctx,
             weights,
-            own: assigned,
-            own_index: PointIndex::new(assigned),
             points,
             point_weight,
             limits,
         }
     }
 
-    /// The nearest point to `x` among the assigned ones (the whole cloud when none are):
-    /// `(point, squared distance)`.
-    fn nearest_own(&self, x: &Point3<f64>) -> Option<(Point3<f64>, f64)> {
-        if self.own.is_empty() {
-            let (j, d2) = self.ctx.index.nearest(x)?;
-            return Some((self.ctx.points[j as usize], d2));
-        }
-        let (j, d2) = self.own_index.nearest(x)?;
-        Some((self.own[j as usize], d2))
+    /// The residual of the sample `x`, `d(x, D) − h` (module docs), and the input point it
+    /// is measured to; `None` when the sample lies within `h` of the data.
+    fn sample_residual(&self, x: &Point3<f64>) -> Option<(f64, Point3<f64>)> {
+        let (j, d2) = self.ctx.index.nearest(x)?;
+        let r = self.weights.sample_residual(d2);
+        (r > 0.0).then(|| (r, self.ctx.points[j as usize]))
     }
 
     /// The refinement cost `F` of `p` on this problem's points.
@@ -917,10 +829,9 @@ impl<'a> Fitter<'a> {
         let spacing = self.ctx.sample_spacing / p.pose.scale;
         for local in p.shape.sample_surface(spacing) {
             let x = p.pose.to_scene(&local);
-            let Some((q, d2)) = self.nearest_own(&x) else {
+            let Some((r, q)) = self.sample_residual(&x) else {
                 continue;
             };
-            let r = self.weights.sample_residual(d2);
             if r <= tiny {
                 continue;
             }
