@@ -165,8 +165,8 @@ fn numbers(v: Option<&Value>, n: usize, what: &str) -> Result<Vec<f64>> {
 pub struct FrameEstimate {
     /// Lattice frame → scene (columns of the matrix are the lattice axes).
     pub rotation: UnitQuaternion<f64>,
-    /// Share of the flattest half of the normals within √2 times the kernel angle (≈ 14°) of a frame axis, in
-    /// [0, 1]: near 1 for rooms, lower for tubes and free-form objects.
+    /// Share of the flattest half of the normals within √2 times the kernel angle (≈ 14°)
+    /// of a frame axis, in [0, 1]: near 1 for rooms, lower for tubes and free-form objects.
     pub support: f64,
 }
 

@@ -6,32 +6,32 @@
 //!
 //! `F(P) = w_point Σ_{y ∈ A(P)} d(y, P)² + w_s Σ_{x ∈ σ(P)} max(0, d(x, A(P)) − h)²`,
 //!
-//! where `A(P)` are the input points `P` owns (below; redone every round; points farther
-//! than the trim distance from every primitive are outliers and pull nothing), `σ(P)` are
-//! `P`'s surface samples at the fitter's sample spacing `s`, and `h` is the cloud's median
-//! point spacing. Units: `F` is in scene units².
+//! where `A(P)` are the input points whose nearest fitted surface is `P` and lies within
+//! the trim distance (the assignment is redone every round; farther points are outliers
+//! and pull nothing), `σ(P)` are `P`'s surface samples at the fitter's sample spacing `s`,
+//! and `h` is the cloud's median point spacing. Units: `F` is in scene units².
 //!
 //! **Why not the plain chamfer.** In the binary chamfer a sample's cost is its squared
-//! distance to the nearest input point *anywhere*. Inside the data that is not zero but
-//! about `h²/6` (regular sampling) to `h²/ln 2` (random sampling) per sample: the term
-//! charges for area, and each patch shrinks until the points it leaves behind cost as much
-//! as the samples it saves. Neighbouring squares then end up with gaps of about a point
-//! spacing between them (the defect of issue 8's first real-scan picture). The second term
-//! above keeps what the sample term is for, stopping a patch from growing past the data,
-//! without that bias:
+//! distance to the nearest input point. Inside the data that is not zero but about `h²/6`
+//! (regular sampling) to `h²/ln 2` (random sampling) per sample: the term charges for
+//! area, and each patch shrinks until the points it leaves behind cost as much as the
+//! samples it saves. Neighbouring squares then end up with gaps of about a point spacing
+//! between them (the defect of issue 8's first real-scan picture). The second term above
+//! keeps what the sample term is for, stopping a patch from growing past the data, without
+//! that bias:
 //!
-//! - *dead zone*: a sample within `h` of the data is on the data and costs nothing;
-//! - *own points*: a sample's distance is measured to `P`'s own points, so a patch that
-//!   grows over a neighbour's share pays for it, and two patches meet where their shares do;
+//! - *dead zone*: a sample within `h` of the points is on them and costs nothing;
+//! - *own points*: a sample's distance is measured to `P`'s own points `A(P)`, so a patch
+//!   that grows over a neighbour's points pays for it as if it hung off the data;
 //! - *balance*: `w_s = w_prim · s² J / A` (`J` points, `A` the total area of the input
 //!   primitives): samples count as if the surfaces carried as many samples as the cloud
 //!   has points, the balance of the DESIGN §4 chamfer, whatever the sample spacing.
 //!
-//! **Ownership.** A point belongs to the primitive whose surface is nearest, within the
-//! trim distance; among the primitives whose surfaces are within `h` of that distance
-//! (overlapping coplanar patches, where noise would otherwise decide), to the one whose
-//! centre is nearest relative to its bounding radius, so overlaps split along their
-//! bisector.
+//! Trade-off: on randomly sampled data a patch's own points thin out at the edge of its
+//! share, and some shrink remains (the bundled hallway: point→model mean 0.0084 against
+//! 0.0081 with the plain chamfer; the real plane scan: 0.0026 against 0.0034). Measuring
+//! samples to the whole cloud instead leaves overlaps uncharged and fits the plane scan no
+//! better than the plain chamfer once numerically zero LM steps are refused (below).
 //!
 //! **Parameters.** A small rotation `ω` (applied on the left, about `P`'s origin), a
 //! translation `τ`, and `η_k = ln s_k` for each size `s_k` (so sizes stay positive), each
@@ -39,7 +39,7 @@
 //! size for re-typed primitives). Squares and disks do not turn about their normal: they
 //! tilt onto their points but keep the lattice frame's in-plane orientation (for a disk
 //! that turn is a symmetry; a square's is hardly constrained inside the data, and left
-//! free it lets patches spin into each other's shares). An elbow keeps `radius < bend`;
+//! free, the patches of a plane spin to all angles). An elbow keeps `radius < bend`;
 //! meshes refine their pose only.
 //!
 //! **Jacobians in closed form**, from the exact closest point `c` ([`Primitive::closest_point`]):
@@ -50,10 +50,12 @@
 //! the local point itself; cylinder: its axial component for the length and its radial
 //! one for the radius; elbow: the centre-line point for the bend, the tube offset for the
 //! radius), rotated into the scene. A sample residual `r = |x − q| − h > 0` (with `q` its
-//! nearest own point) has `∂r/∂θ = m · ∂x/∂θ`, `m = (x − q)/|x − q|`.
+//! nearest input point) has `∂r/∂θ = m · ∂x/∂θ`, `m = (x − q)/|x − q|`.
 //!
 //! Each step solves `(JᵀWJ + λ (diag JᵀWJ + ε I)) δ = −JᵀWr` and is kept only if `F`
-//! decreases (then λ ÷ 3, else λ × 4). Primitives are refined independently and in
+//! decreases by a relative [`MIN_DECREASE`] and more than numerical noise (then λ ÷ 3,
+//! else λ × 4): where the dead zone leaves `F` flat, tiny gradients would otherwise buy
+//! huge steps, and sizes would drift to their limits. Primitives are refined independently and in
 //! parallel, so the result is deterministic. A primitive's point term uses at most
 //! [`MAX_FIT_POINTS`] of its points (evenly strided, reweighted), and a cloud of more than
 //! [`MAX_REFINE_POINTS`] points is refined on an evenly strided subset of that size (the
@@ -77,9 +79,13 @@
 //! its neighbours were refined with its points taken. So each primitive, fewest points
 //! first, is tried for removal *with* its neighbours (the primitives that would own its
 //! points) re-refined on the points they would then own; the removal is kept when the
-//! local cost (the points of the primitive and of its neighbours, each at
-//! `min(d², d_cap)`, plus the samples of all primitives involved, with the dead zone and
-//! balance above, measured to the whole cloud) does not increase.
+//! local chamfer (the points of the primitive and of its neighbours, each at
+//! `min(d², d_cap)`, plus the squared distances to the cloud of the samples of all
+//! primitives involved, with the balance above but no dead zone) does not increase.
+//! Without a dead zone, a neighbour grown over the removed primitive's points pays for its
+//! larger area, so a merge must lower the chamfer; with it, any primitive that neighbours
+//! could cover would go, and a hallway of 1 m squares would come back as fewer squares of
+//! up to 2 m.
 
 use std::time::Instant;
 
@@ -262,7 +268,7 @@ fn refine_on(
     // primitives it judges have already settled onto their points.
     let retype_after = (options.retype && options.rounds > 0).then(|| options.rounds.min(2) - 1);
     for round in 0..options.rounds {
-        let groups = assign(ctx.points, &current, trim, ctx.point_spacing)?;
+        let groups = assign(ctx.points, &current, trim)?;
         current = current
             .par_iter()
             .zip(&groups)
@@ -273,7 +279,7 @@ fn refine_on(
             })
             .collect();
         if retype_after == Some(round) {
-            let groups = assign(ctx.points, &current, trim, ctx.point_spacing)?;
+            let groups = assign(ctx.points, &current, trim)?;
             let switched: Vec<Option<Retyped>> = current
                 .par_iter()
                 .zip(&groups)
@@ -430,7 +436,7 @@ impl Merger<'_> {
         prims: Vec<Primitive>,
         limits: Vec<Vec<(f64, f64)>>,
     ) -> Result<(Vec<Primitive>, Vec<usize>)> {
-        let mut owner = owners(self.ctx.points, &prims, self.trim, self.ctx.point_spacing)?;
+        let mut owner = owners(self.ctx.points, &prims, self.trim)?;
         let mut count = vec![0usize; prims.len()];
         for o in owner.iter().flatten() {
             count[*o] += 1;
@@ -452,13 +458,7 @@ impl Merger<'_> {
                     }
                 }
                 let model: Vec<Primitive> = alive.iter().map(|a| a.1.clone()).collect();
-                let fresh = owners_of(
-                    self.ctx.points,
-                    &region,
-                    &model,
-                    self.trim,
-                    self.ctx.point_spacing,
-                )?;
+                let fresh = owners_of(self.ctx.points, &region, &model, self.trim)?;
                 for (&j, o) in region.iter().zip(fresh) {
                     owner[j] = o;
                 }
@@ -483,13 +483,7 @@ impl Merger<'_> {
         let mut rest: Vec<(usize, Primitive)> = alive.to_vec();
         rest.remove(pos);
         let rest_model: Vec<Primitive> = rest.iter().map(|a| a.1.clone()).collect();
-        let heirs = owners_of(
-            self.ctx.points,
-            &mine,
-            &rest_model,
-            self.trim,
-            self.ctx.point_spacing,
-        )?;
+        let heirs = owners_of(self.ctx.points, &mine, &rest_model, self.trim)?;
         let mut neighbours: Vec<usize> = heirs.iter().flatten().copied().collect();
         neighbours.sort_unstable();
         neighbours.dedup();
@@ -521,13 +515,7 @@ impl Merger<'_> {
         let mut trial = rest.clone();
         for _ in 0..MERGE_ROUNDS {
             let model: Vec<Primitive> = trial.iter().map(|a| a.1.clone()).collect();
-            let region_owner = owners_of(
-                self.ctx.points,
-                &region,
-                &model,
-                self.trim,
-                self.ctx.point_spacing,
-            )?;
+            let region_owner = owners_of(self.ctx.points, &region, &model, self.trim)?;
             let refitted: Vec<Primitive> = neighbours
                 .par_iter()
                 .map(|&k| {
@@ -551,7 +539,8 @@ impl Merger<'_> {
         Ok((after <= before).then_some((trial, region)))
     }
 
-    /// `w_point Σ_{j ∈ region} min(d(y_j, model)², d_cap) + w_prim Σ_{i ∈ sampled} Σ_x d(x, D)²`.
+    /// `w_point Σ_{j ∈ region} min(d(y_j, model)², d_cap) + w_s Σ_{i ∈ sampled} Σ_x d(x, D)²`
+    /// (`w_s` of [`Weights`], no dead zone: see the module docs).
     fn local_cost(
         &self,
         region: &[usize],
@@ -581,108 +570,45 @@ impl Merger<'_> {
                 * p.sample_surface(self.ctx.sample_spacing)
                     .iter()
                     .filter_map(|x| self.ctx.index.nearest(x))
-                    .map(|(_, d2)| self.weights.sample_residual(d2).powi(2))
+                    .map(|(_, d2)| d2)
                     .sum::<f64>();
         }
         Ok(cost)
     }
 }
 
-/// Who owns a point: the primitive whose surface is nearest, within the trim distance;
-/// among the primitives whose surfaces are within `tie` of that nearest distance, the one
-/// whose centre is nearest relative to its bounding radius (`|y − c| / R`). Overlapping
-/// coplanar patches are thus split along their bisector rather than by noise, and the
-/// samples term (measured to a primitive's own points, see the module docs) holds each
-/// patch to its share.
-struct Ownership<'a> {
-    prims: &'a [Primitive],
-    index: PrimitiveIndex<'a>,
-    /// kd-tree over the primitives' centres.
-    centres: PointIndex,
-    max_radius: f64,
-    trim: f64,
-    tie: f64,
-}
-
-impl<'a> Ownership<'a> {
-    fn new(prims: &'a [Primitive], trim: f64, tie: f64) -> Result<Self> {
-        let centres: Vec<Point3<f64>> = prims.iter().map(Primitive::center).collect();
-        Ok(Ownership {
-            prims,
-            index: PrimitiveIndex::new(prims)?,
-            centres: PointIndex::new(&centres),
-            max_radius: prims
-                .iter()
-                .map(Primitive::bounding_radius)
-                .fold(0.0, f64::max),
-            trim,
-            tie,
-        })
-    }
-
-    /// The owner of `y`, if any.
-    fn owner(&self, y: &Point3<f64>) -> Option<usize> {
-        let (best, d0) = self.index.nearest(y).filter(|(_, d)| *d <= self.trim)?;
-        if self.tie <= 0.0 {
-            return Some(best);
-        }
-        let limit = d0 + self.tie;
-        let reach = limit + self.max_radius;
-        let relative = |k: usize| {
-            let p = &self.prims[k];
-            (y - p.center()).norm() / p.bounding_radius().max(f64::MIN_POSITIVE)
-        };
-        let mut owner = (relative(best), best);
-        for (k, c2) in self.centres.within(y, reach * reach) {
-            let k = k as usize;
-            let p = &self.prims[k];
-            if k == best || c2.sqrt() - p.bounding_radius() > limit || p.distance(y) > limit {
-                continue;
-            }
-            let candidate = (relative(k), k);
-            if candidate.0 < owner.0 || (candidate.0 == owner.0 && k < owner.1) {
-                owner = candidate;
-            }
-        }
-        Some(owner.1)
-    }
-}
-
-/// For each point, its owner among `prims` ([`Ownership`]).
-fn owners(
-    points: &[Point3<f64>],
-    prims: &[Primitive],
-    trim: f64,
-    tie: f64,
-) -> Result<Vec<Option<usize>>> {
+/// For each point, its nearest primitive within `trim` (or `None`).
+fn owners(points: &[Point3<f64>], prims: &[Primitive], trim: f64) -> Result<Vec<Option<usize>>> {
     let all: Vec<usize> = (0..points.len()).collect();
-    owners_of(points, &all, prims, trim, tie)
+    owners_of(points, &all, prims, trim)
 }
 
-/// For each of the points `which`, its owner among `prims` ([`Ownership`]).
+/// For each of the points `which`, its nearest primitive within `trim` (or `None`).
 fn owners_of(
     points: &[Point3<f64>],
     which: &[usize],
     prims: &[Primitive],
     trim: f64,
-    tie: f64,
 ) -> Result<Vec<Option<usize>>> {
     if prims.is_empty() {
         return Ok(vec![None; which.len()]);
     }
-    let own = Ownership::new(prims, trim, tie)?;
-    Ok(which.par_iter().map(|&j| own.owner(&points[j])).collect())
+    let index = PrimitiveIndex::new(prims)?;
+    Ok(which
+        .par_iter()
+        .map(|&j| {
+            index
+                .nearest(&points[j])
+                .filter(|(_, d)| *d <= trim)
+                .map(|(i, _)| i)
+        })
+        .collect())
 }
 
-/// For each primitive, the indices of the points it owns ([`Ownership`]).
-fn assign(
-    points: &[Point3<f64>],
-    prims: &[Primitive],
-    trim: f64,
-    tie: f64,
-) -> Result<Vec<Vec<usize>>> {
+/// For each primitive, the indices of the points whose nearest primitive it is, within `trim`.
+fn assign(points: &[Point3<f64>], prims: &[Primitive], trim: f64) -> Result<Vec<Vec<usize>>> {
     let mut groups = vec![Vec::new(); prims.len()];
-    for (j, o) in owners(points, prims, trim, tie)?.into_iter().enumerate() {
+    for (j, o) in owners(points, prims, trim)?.into_iter().enumerate() {
         if let Some(i) = o {
             groups[i].push(j);
         }
@@ -766,7 +692,7 @@ pub fn size_tangents(shape: &Shape, x: &Point3<f64>) -> Vec<Vector3<f64>> {
 /// The scene axis a primitive may not turn about: a square's or disk's normal, so that a
 /// patch tilts onto its points but keeps its in-plane orientation from the lattice frame
 /// (for a disk that turn is a symmetry; for a square it is all but unconstrained inside
-/// the data, and left free it lets patches spin into each other's shares).
+/// the data, and left free the patches of a plane spin to all angles).
 fn locked_axis(p: &Primitive) -> Option<Vector3<f64>> {
     match p.shape {
         Shape::Square { .. } | Shape::Disk { .. } => Some(p.pose.rotation * Vector3::z()),
@@ -780,6 +706,9 @@ pub const MAX_REFINE_POINTS: usize = 50_000;
 
 /// Assignment rounds when neighbours are re-refined in a merge trial.
 const MERGE_ROUNDS: usize = 3;
+
+/// An LM step is kept only if it lowers the cost by at least this fraction.
+pub const MIN_DECREASE: f64 = 1e-9;
 
 /// Residuals below this (relative to the primitive's size) carry no direction and are skipped.
 const TINY: f64 = 1e-12;
@@ -859,15 +788,19 @@ impl<'a> Fitter<'a> {
         }
     }
 
-    /// The nearest point to `x` among the assigned ones (the whole cloud when none are):
-    /// `(point, squared distance)`.
-    fn nearest_own(&self, x: &Point3<f64>) -> Option<(Point3<f64>, f64)> {
-        if self.own.is_empty() {
+    /// The residual of the sample `x`, `d(x, A(P)) − h` (module docs; the whole cloud
+    /// stands in for `A(P)` when that is empty), and the point it is measured to; `None`
+    /// when the sample lies within `h` of those points.
+    fn sample_residual(&self, x: &Point3<f64>) -> Option<(f64, Point3<f64>)> {
+        let (q, d2) = if self.own.is_empty() {
             let (j, d2) = self.ctx.index.nearest(x)?;
-            return Some((self.ctx.points[j as usize], d2));
-        }
-        let (j, d2) = self.own_index.nearest(x)?;
-        Some((self.own[j as usize], d2))
+            (self.ctx.points[j as usize], d2)
+        } else {
+            let (j, d2) = self.own_index.nearest(x)?;
+            (self.own[j as usize], d2)
+        };
+        let r = self.weights.sample_residual(d2);
+        (r > 0.0).then_some((r, q))
     }
 
     /// The refinement cost `F` of `p` on this problem's points.
@@ -917,10 +850,9 @@ impl<'a> Fitter<'a> {
         let spacing = self.ctx.sample_spacing / p.pose.scale;
         for local in p.shape.sample_surface(spacing) {
             let x = p.pose.to_scene(&local);
-            let Some((q, d2)) = self.nearest_own(&x) else {
+            let Some((r, q)) = self.sample_residual(&x) else {
                 continue;
             };
-            let r = self.weights.sample_residual(d2);
             if r <= tiny {
                 continue;
             }
@@ -968,6 +900,12 @@ impl<'a> Fitter<'a> {
         }
         let mut lambda = 1e-3;
         let mut normal = self.normal(&p, true);
+        // A step must lower F by a relative MIN_DECREASE, and by more than residuals of
+        // 1e-9 of the primitive's size would: where the dead zone leaves F flat (a square
+        // over exact data), the damped system's tiny gradient would otherwise buy huge
+        // steps for numerically zero gains, and sizes would drift to their limits.
+        let floor = (1e-9 * p.bounding_radius()).powi(2)
+            * (self.point_weight * self.points.len() as f64 + self.weights.sample * 1e3);
         for _ in 0..iterations {
             let mut accepted = false;
             for _ in 0..6 {
@@ -979,7 +917,7 @@ impl<'a> Fitter<'a> {
                     continue;
                 };
                 let cost = self.normal(&trial, false).cost;
-                if cost < normal.cost {
+                if cost < normal.cost * (1.0 - MIN_DECREASE) - floor {
                     p = trial;
                     lambda = (lambda / 3.0).max(1e-9);
                     accepted = true;
@@ -1149,8 +1087,9 @@ mod tests {
         )
         .unwrap();
         let p = &out.primitives[0];
-        // The normal is unchanged (the data are flat at z = 0), so is the turn about it.
-        assert!(p.pose.rotation.angle_to(&turned) < 1e-6, "{p:?}");
+        // The normal is unchanged (the data are flat at z = 0), so is the turn about it
+        // (0.3 rad; a free square drifts off it).
+        assert!(p.pose.rotation.angle_to(&turned) < 1e-4, "{p:?}");
         assert!(p.pose.translation.z.abs() < 1e-6, "{p:?}");
     }
 
