@@ -28,8 +28,8 @@
 //!   has points, the balance of the DESIGN §4 chamfer, whatever the sample spacing.
 //!
 //! Trade-off: on randomly sampled data a patch's own points thin out at the edge of its
-//! share, and some shrink remains (the bundled hallway: point→model mean 0.0084 against
-//! 0.0081 with the plain chamfer; the real plane scan: 0.0026 against 0.0034). Measuring
+//! share, and some shrink remains (the bundled hallway: point→model mean 0.0083 against
+//! 0.0081 with the plain chamfer; the real plane scan: 0.0025 against 0.0034). Measuring
 //! samples to the whole cloud instead leaves overlaps uncharged and fits the plane scan no
 //! better than the plain chamfer once numerically zero LM steps are refused (below).
 //!
