@@ -32,7 +32,9 @@ use crate::progress::{Progress, Silent};
 use crate::refine::{RefineContext, RefineOptions, Refined, refine};
 use crate::solve::{Solution, SolverOptions, solve};
 use crate::spatial::{PointIndex, median_spacing};
-use crate::surface::{DEFAULT_MAX_POINTS, DEFAULT_NEIGHBOURS, local_planes, noise_level};
+use crate::surface::{
+    DEFAULT_MAX_POINTS, DEFAULT_NEIGHBOURS, NOISE_MAX_POINTS, local_planes, noise_level,
+};
 use crate::{Error, PointCloud, Primitive, Result};
 
 /// User-facing options of [`fit`]; `None` means "derive from the cloud".
@@ -206,8 +208,14 @@ impl Settings {
             ));
         }
         let point_spacing = median_spacing(&cloud.points, index, 2000).unwrap_or(diagonal / 100.0);
-        let planes = local_planes(&cloud.points, index, DEFAULT_NEIGHBOURS, DEFAULT_MAX_POINTS);
-        let noise = noise_level(&planes).unwrap_or(0.0);
+        let noise = noise_level(&local_planes(
+            &cloud.points,
+            index,
+            DEFAULT_NEIGHBOURS,
+            NOISE_MAX_POINTS,
+        ))
+        .unwrap_or(0.0);
+
         let kinds = if o.kinds.is_empty() {
             vec![ShapeKind::Square]
         } else {
@@ -260,6 +268,21 @@ impl Settings {
         if let Some(r) = &o.refine {
             r.validate()?;
         }
+        let given_origin = match &o.frame {
+            FrameChoice::Given {
+                origin: Some(p), ..
+            } => Some(*p),
+            _ => o.origin,
+        };
+        // The frame and the grid origin need more neighbourhoods than the noise level;
+        // they are estimated only when not given.
+        let estimated = matches!(o.frame, FrameChoice::Auto)
+            || (given_origin.is_none() && !matches!(o.frame, FrameChoice::Axis));
+        let planes = if estimated {
+            local_planes(&cloud.points, index, DEFAULT_NEIGHBOURS, DEFAULT_MAX_POINTS)
+        } else {
+            Vec::new()
+        };
         let (frame, frame_support) = match &o.frame {
             FrameChoice::Axis => (UnitQuaternion::identity(), None),
             FrameChoice::Given { rotation, .. } => (*rotation, None),
@@ -267,12 +290,6 @@ impl Settings {
                 Some(FrameEstimate { rotation, support }) => (rotation, Some(support)),
                 None => (UnitQuaternion::identity(), None),
             },
-        };
-        let given_origin = match &o.frame {
-            FrameChoice::Given {
-                origin: Some(p), ..
-            } => Some(*p),
-            _ => o.origin,
         };
         let origin = match (given_origin, &o.frame) {
             (Some(p), _) => p,

@@ -276,17 +276,31 @@ impl Shape {
     }
 
     /// Euclidean distance from `p` to the surface (local frame); equal to
-    /// `‖p − closest_point(p)‖`, with closed forms for the tubes (no trigonometry).
+    /// `‖p − closest_point(p)‖`, with closed forms for the tubes (no trigonometry: this is
+    /// the point term's inner loop).
     pub fn distance(&self, p: &Point3<f64>) -> f64 {
+        // √(a² + b²): `f64::hypot` guards against overflow that scene coordinates never
+        // reach, at several times the cost.
+        let norm2 = |a: f64, b: f64| (a * a + b * b).sqrt();
         match self {
             Shape::Cylinder { length, radius } => {
                 let beyond = (p.z.abs() - length / 2.0).max(0.0);
-                (p.x.hypot(p.y) - radius).hypot(beyond)
+                norm2(norm2(p.x, p.y) - radius, beyond)
             }
             // Within the bend's quarter (0 ≤ angle ≤ π/2) the nearest tube circle lies in
             // the plane through p and the z axis: distance to a circle of that plane.
             Shape::Elbow { bend, radius } if p.x >= 0.0 && p.y >= 0.0 => {
-                ((p.x.hypot(p.y) - bend).hypot(p.z) - radius).abs()
+                (norm2(norm2(p.x, p.y) - bend, p.z) - radius).abs()
+            }
+            // Outside it, the nearest point is on one of the two end circles (as in
+            // `elbow_closest`): the circle at angle 0 has centre (B, 0, 0) and axis y, the
+            // one at π/2 centre (0, B, 0) and axis x; the distance to a circle of radius r
+            // is √((ρ − r)² + a²) with ρ the in-plane distance from its centre and a the
+            // offset along its axis.
+            Shape::Elbow { bend, radius } => {
+                let start = norm2(norm2(p.x - bend, p.z) - radius, p.y);
+                let end = norm2(norm2(p.y - bend, p.z) - radius, p.x);
+                start.min(end)
             }
             _ => (p - self.closest_point(p)).norm(),
         }
