@@ -264,14 +264,22 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
     } else {
         Encoding::BinaryLittleEndian
     };
-    if let Some(path) = &args.output {
-        let mut doc = result.to_json(metrics.to_json());
-        doc["settings"]["scene"] = args.scene.display().to_string().into();
-        io::write_json_atomic(path, &doc)?;
-    }
+    // Both outputs or neither: the JSON is staged, the mesh written, then the JSON
+    // renamed into place (a failed mesh write drops the staged JSON).
+    let staged = match &args.output {
+        Some(path) => {
+            let mut doc = result.to_json(metrics.to_json());
+            doc["settings"]["scene"] = args.scene.display().to_string().into();
+            Some(io::stage_json(path, &doc)?)
+        }
+        None => None,
+    };
     if let Some(path) = &args.mesh {
         let (mesh, owner) = result.mesh();
         io::write_mesh(path, &mesh, Some(&owner), encoding)?;
+    }
+    if let Some(json) = staged {
+        json.commit()?;
     }
     if !out.quiet {
         print_summary(&args, &result, &metrics, out.verbose);

@@ -296,6 +296,9 @@ fn write(a: &SynthArgs, scene: &Scene, extra: serde_json::Value) -> Result<()> {
     } else {
         Encoding::BinaryLittleEndian
     };
+    // Both outputs or neither: the truth is staged, the cloud written, then the truth
+    // renamed into place.
+    let mut staged = None;
     if let Some(path) = &a.truth {
         let h = &scene.lattice;
         let settings = json!({
@@ -310,8 +313,11 @@ fn write(a: &SynthArgs, scene: &Scene, extra: serde_json::Value) -> Result<()> {
         });
         let existence = vec![1.0; scene.truth.len()];
         let doc = result_json(settings, json!({}), &scene.truth, &existence);
-        io::write_json_atomic(path, &doc).context("writing the truth")?;
+        staged = Some(io::stage_json(path, &doc).context("writing the truth")?);
     }
     io::write_cloud(&a.output, &scene.cloud, encoding)?;
+    if let Some(truth) = staged {
+        truth.commit().context("writing the truth")?;
+    }
     Ok(())
 }

@@ -25,22 +25,56 @@ pub fn write_atomic<F>(path: &Path, write: F) -> Result<()>
 where
     F: FnOnce(&mut dyn Write) -> Result<()>,
 {
+    stage(path, write)?.commit()
+}
+
+/// Writes a JSON value, pretty-printed and newline-terminated, with [`write_atomic`].
+pub fn write_json_atomic(path: &Path, value: &serde_json::Value) -> Result<()> {
+    stage_json(path, value)?.commit()
+}
+
+/// The first half of [`write_atomic`]: the temporary file is written, flushed and synced,
+/// but only [`StagedFile::commit`] renames it over `path`; dropping the result instead
+/// removes it and leaves `path` untouched. For outputs that must appear together or not
+/// at all: stage the first, write the second, then commit the first.
+pub fn stage<F>(path: &Path, write: F) -> Result<StagedFile>
+where
+    F: FnOnce(&mut dyn Write) -> Result<()>,
+{
     let temp = TempFile::beside(path)?;
     let mut out = BufWriter::new(&temp.file);
     write(&mut out)?;
     out.flush().map_err(|e| Error::io(path, e))?;
     drop(out);
     temp.file.sync_all().map_err(|e| Error::io(path, e))?;
-    temp.persist(path)
+    Ok(StagedFile {
+        temp,
+        target: path.to_path_buf(),
+    })
 }
 
-/// Writes a JSON value, pretty-printed and newline-terminated, with [`write_atomic`].
-pub fn write_json_atomic(path: &Path, value: &serde_json::Value) -> Result<()> {
-    write_atomic(path, |w| {
+/// [`stage`] for a JSON value, formatted as by [`write_json_atomic`].
+pub fn stage_json(path: &Path, value: &serde_json::Value) -> Result<StagedFile> {
+    stage(path, |w| {
         serde_json::to_writer_pretty(&mut *w, value)
             .map_err(|e| Error::io(path, io::Error::other(e)))?;
         w.write_all(b"\n").map_err(|e| Error::io(path, e))
     })
+}
+
+/// A complete temporary file waiting to replace its target ([`stage`]); removed on drop
+/// unless committed.
+#[must_use = "a staged file is removed on drop unless committed"]
+pub struct StagedFile {
+    temp: TempFile,
+    target: PathBuf,
+}
+
+impl StagedFile {
+    /// Renames the temporary file over the target.
+    pub fn commit(self) -> Result<()> {
+        self.temp.persist(&self.target)
+    }
 }
 
 /// A temporary file that deletes itself on drop unless persisted.

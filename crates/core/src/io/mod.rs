@@ -49,7 +49,7 @@ mod tests;
 
 use std::fmt;
 
-pub use atomic::{write_atomic, write_json_atomic};
+pub use atomic::{StagedFile, stage, stage_json, write_atomic, write_json_atomic};
 pub use palette::{PALETTE, palette_color};
 pub use ply::{
     read_cloud, read_cloud_report, read_mesh, read_mesh_report, write_cloud, write_mesh,

@@ -1130,6 +1130,33 @@ fn io_write_atomic_failure_keeps_old_file_and_leaves_no_temp() {
     assert_eq!(dir.files(), vec!["out.json"]);
 }
 
+/// Two outputs that must appear together: the first is staged, and a failure of the
+/// second drops it (old file kept, no temporary left); committed, it replaces the target.
+#[test]
+fn io_staged_file_is_written_only_on_commit() {
+    let dir = Scratch::new("staged");
+    let json = dir.write("result.json", b"old");
+    let staged = stage_json(&json, &serde_json::json!({"new": true})).expect("stage");
+    assert_eq!(fs::read(&json).expect("old file"), b"old");
+    assert_eq!(dir.files().len(), 2, "{:?}", dir.files()); // the staged temporary
+    let missing = dir.path("no/such/dir/fitted.ply");
+    let second = write_mesh(&missing, &TriMesh::default(), None, Encoding::Ascii);
+    assert!(second.is_err());
+    drop(staged);
+    assert_eq!(fs::read(&json).expect("old file"), b"old");
+    assert_eq!(dir.files(), vec!["result.json"]);
+
+    stage_json(&json, &serde_json::json!({"new": true}))
+        .expect("stage")
+        .commit()
+        .expect("commit");
+    assert_eq!(
+        fs::read_to_string(&json).expect("new file"),
+        "{\n  \"new\": true\n}\n"
+    );
+    assert_eq!(dir.files(), vec!["result.json"]);
+}
+
 #[test]
 fn io_write_atomic_bad_targets() {
     let dir = Scratch::new("atomic-bad");
