@@ -10,7 +10,7 @@
 //! | `radius` | `size / 10` (tube radius of cylinders and elbows) |
 //! | `bend` | `spacing` (elbow centre-line radius) |
 //! | `cap` | `max(spacing, 5σ)`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; on very noisy scans (noise σ, see below) a point within 5σ of a surface still counts as explained. `d_cap = cap²` |
-//! | noise σ | the median off-plane spread of the flattest half of the k = 32 nearest-neighbour neighbourhoods ([`crate::surface::noise_level`]) |
+//! | noise σ | the median off-plane spread of the flattest half of the k = 32 nearest-neighbour neighbourhoods of up to 4 000 evenly strided points ([`crate::surface::noise_level`], [`crate::surface::NOISE_MAX_POINTS`]) |
 //! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
 //! | `beta` | 32 candidates per point (24 was the least that recovered every synthetic pipe) |
 //! | `alpha` | 10 samples per candidate (thesis §6.3), `independent` model only |
@@ -808,8 +808,13 @@ fn fit_pass(
 
     let t1 = Instant::now();
     // Exact: a dominated candidate has p = 0 at every minimum (`chamfer::dominance`).
-    let reduced =
-        Coefficients::build_reduced(&cloud.points, &candidates, &settings.chamfer, progress)?;
+    let reduced = Coefficients::build_reduced(
+        &cloud.points,
+        index,
+        &candidates,
+        &settings.chamfer,
+        progress,
+    )?;
     let lattice_candidates = candidates.len();
     candidates.retain(&reduced.keep_mask(lattice_candidates));
     let coeffs = reduced.coefficients;

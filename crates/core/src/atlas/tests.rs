@@ -2,7 +2,6 @@
 //! independently: the implicit surface equations, dense samples, brute force over all
 //! faces, or sphere tracing along rays. Meshes are built procedurally (no files).
 
-use std::collections::HashMap;
 use std::f64::consts::{FRAC_1_SQRT_2, PI};
 
 use nalgebra::{Point3, Vector3};
@@ -55,69 +54,11 @@ fn box_mesh(a: f64, b: f64, c: f64) -> TriMesh {
 /// An icosphere of the given radius: an icosahedron whose faces are split in four
 /// `levels` times, with vertices pushed onto the sphere (20 · 4^levels faces).
 fn icosphere(radius: f64, levels: u32) -> TriMesh {
-    let g = (1.0 + 5f64.sqrt()) / 2.0;
-    let mut vertices: Vec<Point3<f64>> = [
-        [-1.0, g, 0.0],
-        [1.0, g, 0.0],
-        [-1.0, -g, 0.0],
-        [1.0, -g, 0.0],
-        [0.0, -1.0, g],
-        [0.0, 1.0, g],
-        [0.0, -1.0, -g],
-        [0.0, 1.0, -g],
-        [g, 0.0, -1.0],
-        [g, 0.0, 1.0],
-        [-g, 0.0, -1.0],
-        [-g, 0.0, 1.0],
-    ]
-    .iter()
-    .map(|v| Point3::from(Vector3::from(*v).normalize()))
-    .collect();
-    let mut faces: Vec<[u32; 3]> = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    for _ in 0..levels {
-        let mut midpoints: HashMap<(u32, u32), u32> = HashMap::new();
-        let mut midpoint = |a: u32, b: u32, vertices: &mut Vec<Point3<f64>>| {
-            *midpoints.entry((a.min(b), a.max(b))).or_insert_with(|| {
-                let m = (vertices[a as usize].coords + vertices[b as usize].coords).normalize();
-                vertices.push(Point3::from(m));
-                vertices.len() as u32 - 1
-            })
-        };
-        faces = faces
-            .iter()
-            .flat_map(|&[a, b, c]| {
-                let ab = midpoint(a, b, &mut vertices);
-                let bc = midpoint(b, c, &mut vertices);
-                let ca = midpoint(c, a, &mut vertices);
-                [[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]
-            })
-            .collect();
-    }
-    vertices
+    let mut mesh = TriMesh::unit_icosphere(levels);
+    mesh.vertices
         .iter_mut()
         .for_each(|v| *v = Point3::from(v.coords * radius));
-    TriMesh { vertices, faces }
+    mesh
 }
 
 fn box_shape() -> Shape {
@@ -1039,5 +980,38 @@ fn distance_equals_the_distance_to_the_closest_point() {
                 "{shape:?} at {p:?}: {d} vs {via_point}"
             );
         }
+    }
+}
+
+/// The icosphere is closed, on the unit sphere, outward-facing, with the expected counts.
+#[test]
+fn unit_icosphere_is_a_closed_outward_unit_sphere() {
+    for levels in 0..3u32 {
+        let m = TriMesh::unit_icosphere(levels);
+        let four = 4usize.pow(levels);
+        assert_eq!(m.faces.len(), 20 * four);
+        assert_eq!(m.vertices.len(), 12 + 10 * (four - 1));
+        assert!(
+            m.vertices
+                .iter()
+                .all(|v| (v.coords.norm() - 1.0).abs() < 1e-12)
+        );
+        let mut edges = std::collections::HashMap::new();
+        for f in &m.faces {
+            let [a, b, c] = f.map(|i| m.vertices[i as usize].coords);
+            assert!(
+                (b - a).cross(&(c - a)).dot(&(a + b + c)) > 0.0,
+                "{f:?} faces inward"
+            );
+            for (p, q) in [(f[0], f[1]), (f[1], f[2]), (f[2], f[0])] {
+                *edges.entry((p, q)).or_insert(0) += 1;
+            }
+        }
+        // Closed and consistently wound: every directed edge once, its reverse once.
+        assert!(
+            edges
+                .iter()
+                .all(|(&(p, q), &n)| n == 1 && edges.get(&(q, p)) == Some(&1))
+        );
     }
 }

@@ -54,27 +54,33 @@ impl Reduced {
 impl Coefficients {
     /// Like [`Coefficients::build`], then drops the dominated candidates (module docs):
     /// the minimisers of the reduced loss, padded with `p = 0` for the dropped candidates,
-    /// are exactly the minimisers of the full loss.
+    /// are exactly the minimisers of the full loss. `cloud_index` must index `cloud` (the
+    /// fitter's own, so that a large cloud's tree is not built twice).
     pub fn build_reduced(
         cloud: &[Point3<f64>],
+        cloud_index: &PointIndex,
         geometry: &impl CandidateGeometry,
         options: &ChamferOptions,
         progress: &dyn Progress,
     ) -> Result<Reduced> {
         options.validate()?;
+        debug_assert_eq!(
+            cloud_index.len(),
+            cloud.len(),
+            "cloud_index must index cloud"
+        );
         let n = geometry.len();
         check_candidate_count(n)?;
         let mut rows = PointRows::build(cloud, geometry, options, progress);
         let (wp, wq) = (options.primitive_weight, options.point_weight);
 
         let savings = savings_bounds(&rows, n, options.cap);
-        let cloud_index = PointIndex::new(cloud);
         progress.start("primitive term", n as u64);
         let bounded: Vec<Bounded> = (0..n)
             .into_par_iter()
             .map_init(Vec::new, |buf, i| {
                 geometry.scene_samples(i, buf);
-                let b = bounded_primitive_term(&cloud_index, buf, |g| wp * g > wq * savings[i]);
+                let b = bounded_primitive_term(cloud_index, buf, |g| wp * g > wq * savings[i]);
                 progress.advance(1);
                 b
             })
@@ -249,7 +255,9 @@ mod tests {
     fn build(pr: &Problem, o: &ChamferOptions) -> (Coefficients, Reduced) {
         let sets = SampleSets::new(&pr.samples, &pr.owner, pr.n).unwrap();
         let full = Coefficients::build(&pr.cloud, &sets, o, &Silent).unwrap();
-        let reduced = Coefficients::build_reduced(&pr.cloud, &sets, o, &Silent).unwrap();
+        let reduced =
+            Coefficients::build_reduced(&pr.cloud, &PointIndex::new(&pr.cloud), &sets, o, &Silent)
+                .unwrap();
         (full, reduced)
     }
 

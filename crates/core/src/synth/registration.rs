@@ -1,7 +1,6 @@
 //! Registration scenes (thesis §6.3.3): points from a randomly posed mesh plus uniform
 //! outliers; and a small procedural asymmetric test object.
 
-use std::collections::HashMap;
 use std::sync::Arc;
 
 use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
@@ -158,10 +157,10 @@ pub fn registration(mesh: &MeshShape, params: &RegistrationParams) -> Result<Sce
 /// so no rotation other than the identity maps it onto itself. Star-shaped about the
 /// origin (hence not self-intersecting); faces are counter-clockwise seen from outside.
 pub fn asymmetric_object() -> MeshShape {
-    let (mut vertices, mut faces) = icosahedron();
-    for _ in 0..2 {
-        faces = subdivide(&mut vertices, &faces);
-    }
+    let TriMesh {
+        mut vertices,
+        faces,
+    } = TriMesh::unit_icosphere(2);
     let bumps = [
         (Vector3::new(1.0, 0.3, 0.2).normalize(), 0.35),
         (Vector3::new(-0.2, 1.0, 0.6).normalize(), 0.2),
@@ -180,72 +179,4 @@ pub fn asymmetric_object() -> MeshShape {
     // A closed icosphere with finite vertices always has faces of positive area.
     MeshShape::new("asymmetric_object", Arc::new(TriMesh { vertices, faces }))
         .expect("procedural mesh is valid")
-}
-
-/// The unit icosahedron (outward counter-clockwise faces).
-fn icosahedron() -> (Vec<Point3<f64>>, Vec<[u32; 3]>) {
-    let t = (1.0 + 5f64.sqrt()) / 2.0;
-    let raw = [
-        (-1.0, t, 0.0),
-        (1.0, t, 0.0),
-        (-1.0, -t, 0.0),
-        (1.0, -t, 0.0),
-        (0.0, -1.0, t),
-        (0.0, 1.0, t),
-        (0.0, -1.0, -t),
-        (0.0, 1.0, -t),
-        (t, 0.0, -1.0),
-        (t, 0.0, 1.0),
-        (-t, 0.0, -1.0),
-        (-t, 0.0, 1.0),
-    ];
-    let vertices = raw
-        .iter()
-        .map(|&(x, y, z)| Point3::from(Vector3::new(x, y, z).normalize()))
-        .collect();
-    let faces = vec![
-        [0, 11, 5],
-        [0, 5, 1],
-        [0, 1, 7],
-        [0, 7, 10],
-        [0, 10, 11],
-        [1, 5, 9],
-        [5, 11, 4],
-        [11, 10, 2],
-        [10, 7, 6],
-        [7, 1, 8],
-        [3, 9, 4],
-        [3, 4, 2],
-        [3, 2, 6],
-        [3, 6, 8],
-        [3, 8, 9],
-        [4, 9, 5],
-        [2, 4, 11],
-        [6, 2, 10],
-        [8, 6, 7],
-        [9, 8, 1],
-    ];
-    (vertices, faces)
-}
-
-/// Splits every triangle into four, projecting new vertices onto the unit sphere.
-fn subdivide(vertices: &mut Vec<Point3<f64>>, faces: &[[u32; 3]]) -> Vec<[u32; 3]> {
-    let mut mid: HashMap<(u32, u32), u32> = HashMap::new();
-    let mut midpoint = |a: u32, b: u32, vertices: &mut Vec<Point3<f64>>| {
-        *mid.entry((a.min(b), a.max(b))).or_insert_with(|| {
-            let m = (vertices[a as usize].coords + vertices[b as usize].coords).normalize();
-            vertices.push(Point3::from(m));
-            (vertices.len() - 1) as u32
-        })
-    };
-    let mut out = Vec::with_capacity(faces.len() * 4);
-    for &[a, b, c] in faces {
-        let (ab, bc, ca) = (
-            midpoint(a, b, vertices),
-            midpoint(b, c, vertices),
-            midpoint(c, a, vertices),
-        );
-        out.extend([[a, ab, ca], [b, bc, ab], [c, ca, bc], [ab, bc, ca]]);
-    }
-    out
 }
