@@ -466,7 +466,6 @@ impl CellGrid {
 /// A KD-tree over candidate bounding-ball centres, for finding the candidates near a point.
 struct CentreIndex {
     index: PointIndex,
-    centres: Vec<Point3<f64>>,
     /// Bounding radius of each candidate (its samples and surface lie within it).
     radii: Vec<f64>,
     max_radius: f64,
@@ -482,7 +481,6 @@ impl CentreIndex {
         let max_radius = radii.iter().copied().fold(0.0, f64::max);
         CentreIndex {
             index: PointIndex::new(&centres),
-            centres,
             radii,
             max_radius,
         }
@@ -510,11 +508,34 @@ struct RowBuilder<'a, G: CandidateGeometry> {
     /// Search radius to start the next point with: the last point's β-th distance.
     /// Consecutive points are usually neighbours; the result never depends on it.
     start_radius: f64,
-    /// The current cell and the candidates (id, centre) whose centre lies within
-    /// `cell_radius + R_max` of every point of it.
+    /// The current cell, its centre `m`, and the candidates whose centre lies within
+    /// `cell_radius + R_max` of every point of it as `(d_i(m), id)` (distance, not
+    /// squared), ascending.
     cell_key: Option<u64>,
-    cell_candidates: Vec<(u32, Point3<f64>)>,
+    cell_centre: Point3<f64>,
+    cell_sorted: Vec<(f64, u32)>,
     cell_radius: f64,
+    /// The β best so far of the cell scan: a max-heap on `(squared distance, id)`.
+    best: std::collections::BinaryHeap<Best>,
+}
+
+/// A measured candidate in [`RowBuilder::scan_cell`]'s heap, ordered by (squared distance,
+/// id): the order of the rows (ties to the lower index).
+#[derive(Debug, Clone, Copy, PartialEq)]
+struct Best(f64, u32);
+
+impl Eq for Best {}
+
+impl PartialOrd for Best {
+    fn partial_cmp(&self, other: &Self) -> Option<std::cmp::Ordering> {
+        Some(self.cmp(other))
+    }
+}
+
+impl Ord for Best {
+    fn cmp(&self, other: &Self) -> std::cmp::Ordering {
+        self.0.total_cmp(&other.0).then(self.1.cmp(&other.1))
+    }
 }
 
 impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
@@ -529,22 +550,29 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             entries: Vec::new(),
             start_radius: options.cap.sqrt(),
             cell_key: None,
-            cell_candidates: Vec::new(),
+            cell_centre: Point3::origin(),
+            cell_sorted: Vec::new(),
             cell_radius: 0.0,
+            best: std::collections::BinaryHeap::new(),
         }
     }
 
     /// Fetches the candidates near cell `key`: those a search of radius ρ (the current
-    /// start radius) from any point of the cell can reach.
+    /// start radius) from any point of the cell can reach, with their distances from the
+    /// cell's centre, sorted.
     fn load_cell(&mut self, key: u64, grid: &CellGrid) {
         let c = self.centres;
         self.cell_key = Some(key);
         self.cell_radius = self.start_radius.max(1e-9);
+        self.cell_centre = grid.centre(key);
         let reach = self.cell_radius + c.max_radius + grid.half_diagonal();
-        self.cell_candidates.clear();
-        for (i, _) in c.index.within(&grid.centre(key), reach * reach) {
-            self.cell_candidates.push((i, c.centres[i as usize]));
+        self.cell_sorted.clear();
+        for (i, _) in c.index.within(&self.cell_centre, reach * reach) {
+            let d2 = candidate_distance(self.geometry, self.options, i as usize, &self.cell_centre);
+            self.cell_sorted.push((d2.sqrt(), i));
         }
+        self.cell_sorted
+            .sort_unstable_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)));
     }
 
     /// Appends the entries of point `y` to `cand`/`dist`.
@@ -597,50 +625,96 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
         }
     }
 
-    /// The β best candidates by a growing search radius ρ and lower bounds.
+    /// The β best candidates: first from the current cell ([`RowBuilder::scan_cell`]),
+    /// then, if that cannot be proved exact, by a growing search radius ρ and lower bounds.
     ///
-    /// Candidates whose centre is within ρ + R_max are gathered with their lower bounds
-    /// `(‖y − c_i‖ − R_i)₊²` (from the current cell's list when it covers ρ, else from
-    /// the tree) and measured by [`RowBuilder::measure_bounded`]. Once β are found and the
-    /// β-th is within ρ², no candidate outside the gathered ball can be closer (its
-    /// distance exceeds ρ²), so the β are exact; otherwise ρ grows to the β-th distance
-    /// (or doubles) and the search repeats from the tree.
+    /// The cell's list holds every candidate whose centre is within ρ + R_max of every
+    /// point of the cell, so when its β-th distance is within ρ² no candidate outside it
+    /// can be closer (its distance exceeds ρ). Otherwise candidates whose centre is within
+    /// ρ + R_max of `y` are gathered from the tree with their lower bounds
+    /// `(‖y − c_i‖ − R_i)₊²` and measured by [`RowBuilder::measure_bounded`]; once β are
+    /// found and the β-th is within ρ², the β are exact; otherwise ρ grows to the β-th
+    /// distance (or doubles) and the search repeats.
     fn bounded_search(&mut self, y: &Point3<f64>, beta: usize) {
         let c = self.centres;
         let n = self.geometry.len();
         let mut rho = self.cell_radius;
-        let mut from_cell = self.cell_key.is_some();
-        loop {
-            let reach = rho + c.max_radius;
-            self.bounds.clear();
-            if from_cell {
-                for &(i, centre) in &self.cell_candidates {
-                    let d2 = (y - centre).norm_squared();
-                    if d2 <= reach * reach {
-                        self.bounds.push((c.lower_bound(i as usize, d2), i));
-                    }
-                }
-            } else {
-                for (i, d2) in c.index.within(y, reach * reach) {
-                    self.bounds.push((c.lower_bound(i as usize, d2), i));
-                }
-            }
-            let worst = self.measure_bounded(y, beta);
-            if worst <= rho * rho || self.bounds.len() == n {
-                if worst.is_finite() {
-                    // Neighbouring points need about the same radius; a margin saves most
-                    // repeated searches.
-                    self.start_radius = 1.25 * worst.sqrt();
-                }
+        let mut worst = f64::INFINITY;
+        let mut grow = false;
+        if self.cell_key.is_some() {
+            worst = self.scan_cell(y, beta);
+            if worst <= rho * rho || self.cell_sorted.len() == n {
+                self.remember(worst);
                 return;
             }
-            from_cell = false;
-            rho = if worst.is_finite() {
-                // Every candidate within the β-th distance has its centre within reach now.
-                worst.sqrt().max(rho * 1.000_001)
+            grow = true;
+        }
+        loop {
+            if grow {
+                rho = if worst.is_finite() {
+                    // Every candidate within the β-th distance has its centre within reach.
+                    worst.sqrt().max(rho * 1.000_001)
+                } else {
+                    rho.max(1e-9) * 2.0
+                };
+            }
+            grow = true;
+            let reach = rho + c.max_radius;
+            self.bounds.clear();
+            for (i, d2) in c.index.within(y, reach * reach) {
+                self.bounds.push((c.lower_bound(i as usize, d2), i));
+            }
+            worst = self.measure_bounded(y, beta);
+            if worst <= rho * rho || self.bounds.len() == n {
+                self.remember(worst);
+                return;
+            }
+        }
+    }
+
+    /// Neighbouring points need about the same radius; a margin saves most repeated
+    /// searches. The result never depends on it.
+    fn remember(&mut self, worst: f64) {
+        if worst.is_finite() {
+            self.start_radius = 1.25 * worst.sqrt();
+        }
+    }
+
+    /// The β best of the current cell's candidates into `self.near`; returns the β-th
+    /// squared distance (∞ if the cell has fewer than β).
+    ///
+    /// A distance to a set is 1-Lipschitz, so `d_i(y) ≥ d_i(m) − ‖y − m‖` for the cell's
+    /// centre `m`: with the candidates sorted by `d_i(m)`, the scan stops at the first one
+    /// whose bound exceeds the β-th distance found so far, and every one after it is
+    /// farther still. The bound is loosened by a relative 1e-12 against rounding.
+    fn scan_cell(&mut self, y: &Point3<f64>, beta: usize) -> f64 {
+        let delta = (y - self.cell_centre).norm();
+        self.best.clear();
+        let mut w = f64::INFINITY;
+        for &(dm, i) in &self.cell_sorted {
+            if dm * (1.0 - 1e-12) - delta * (1.0 + 1e-12) > w * (1.0 + 1e-12) {
+                break;
+            }
+            let d = candidate_distance(self.geometry, self.options, i as usize, y);
+            let entry = Best(d, i);
+            if self.best.len() < beta {
+                self.best.push(entry);
+            } else if self.best.peek().is_some_and(|top| entry < *top) {
+                self.best.pop();
+                self.best.push(entry);
             } else {
-                rho.max(1e-9) * 2.0
-            };
+                continue;
+            }
+            if self.best.len() == beta {
+                w = self.best.peek().map_or(f64::INFINITY, |top| top.0.sqrt());
+            }
+        }
+        self.near.clear();
+        self.near.extend(self.best.iter().map(|b| (b.1, b.0)));
+        if self.near.len() == beta {
+            self.best.peek().map_or(f64::INFINITY, |top| top.0)
+        } else {
+            f64::INFINITY
         }
     }
 
