@@ -526,8 +526,8 @@ pub fn primitives_mesh(primitives: &[Primitive]) -> (TriMesh, Vec<i32>) {
 /// * the coefficients themselves: `12·E + 8` bytes ([`Coefficients::BYTES_PER_ENTRY`]
 ///   plus a row offset), held from the build to the end;
 /// * plus the larger of two transients: the build's per-chunk rows, copied into the
-///   final arrays (`12·E`), and the polish's per-candidate transpose (16 bytes per
-///   distinct (point, candidate): `16·U`);
+///   final arrays (`12·E`, plus 16 bytes per point saying where each row lies), and the
+///   polish's per-candidate transpose (16 bytes per distinct (point, candidate): `16·U`);
 /// * plus [`BYTES_PER_POINT`] for the cloud, its KD-tree and per-point solver state.
 ///
 /// The benchmark table (`scripts/bench.sh`) prints this estimate next to the measured
@@ -546,7 +546,7 @@ pub fn estimate_bytes(
         };
     let per_entry = Coefficients::BYTES_PER_ENTRY as u64;
     let coefficients = entries * per_entry + 8;
-    let transient = (entries * per_entry).max(16 * distinct);
+    let transient = (entries * per_entry + 16).max(16 * distinct);
     points as u64 * (coefficients + transient + BYTES_PER_POINT)
 }
 
@@ -563,8 +563,9 @@ fn human_bytes(b: u64) -> String {
 }
 
 /// Bytes per input point besides the coefficients in [`estimate_bytes`]: the cloud
-/// (24), the KD-tree built over it for the settings and the primitive term (2 × ~28),
-/// and the polish's per-point owner and cost (12).
+/// (24), the KD-tree built over it (~28, shared by the settings and the primitive term),
+/// the build's cell order (12), and the polish's per-point owner and cost (12), rounded
+/// up.
 pub const BYTES_PER_POINT: u64 = 96;
 
 /// The exact binary chamfer of a primitive set against `cloud` under `settings` (samples
@@ -968,15 +969,16 @@ mod tests {
             alpha: Some(10),
             ..existence.clone()
         };
-        // 320 entries: the build's copy of them outweighs the transpose.
+        // 320 entries: the build's copy of them (and where each row lies) outweighs the
+        // transpose.
         assert_eq!(
             estimate_bytes(1, 5000, 256, &independent),
-            2 * 320 * 12 + 8 + base
+            320 * 12 + 8 + (320 * 12 + 16) + base
         );
         // Fewer candidates than β: every candidate is an entry.
         assert_eq!(
             estimate_bytes(2, 3, 256, &existence),
-            2 * (3 * 12 + 8 + 3 * 16 + base)
+            2 * (3 * 12 + 8 + (3 * 12 + 16) + base)
         );
 
         let c = corner();

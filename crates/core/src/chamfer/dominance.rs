@@ -109,9 +109,9 @@ impl Coefficients {
         for (k, &i) in kept.iter().enumerate() {
             new_id[i] = k as u32;
         }
-        for c in &mut rows.cand {
-            *c = new_id[*c as usize];
-        }
+        rows.cand
+            .par_iter_mut()
+            .for_each(|c| *c = new_id[*c as usize]);
         let g = kept.iter().map(|&i| g[i]).collect();
         Ok(Reduced {
             coefficients: rows.into_coefficients(g, options.clone()),
@@ -122,22 +122,49 @@ impl Coefficients {
 
 /// `S_i` of the module docs for every candidate: the largest decrease of the point term
 /// that `p_i` can ever bring, per unit of `w_point`.
+///
+/// Summed over [`SAVINGS_BLOCKS`] fixed blocks of rows in parallel, then block by block
+/// in order, so the sums do not depend on the thread count.
 fn savings_bounds(rows: &PointRows, n: usize, cap: f64) -> Vec<f64> {
+    let points = rows.lens.len();
+    let per_block = points.div_ceil(SAVINGS_BLOCKS).max(1);
+    let mut blocks = Vec::new();
+    let mut entry = 0;
+    for first in (0..points).step_by(per_block) {
+        let last = (first + per_block).min(points);
+        blocks.push((first..last, entry));
+        entry += rows.lens[first..last].iter().sum::<usize>();
+    }
+    let partial: Vec<Vec<f64>> = blocks
+        .into_par_iter()
+        .map(|(block, mut start)| {
+            let mut savings = vec![0.0; n];
+            for &len in &rows.lens[block] {
+                let cand = &rows.cand[start..start + len];
+                let dist = &rows.dist[start..start + len];
+                // M_k = max(d_cap, distances after k), walking the row backwards.
+                let mut later_max = cap;
+                for (&i, &d) in cand.iter().zip(dist).rev() {
+                    savings[i as usize] += (later_max - d).max(0.0);
+                    later_max = later_max.max(d);
+                }
+                start += len;
+            }
+            savings
+        })
+        .collect();
     let mut savings = vec![0.0; n];
-    let mut start = 0;
-    for &len in &rows.lens {
-        let cand = &rows.cand[start..start + len];
-        let dist = &rows.dist[start..start + len];
-        // M_k = max(d_cap, distances after k), walking the row backwards.
-        let mut later_max = cap;
-        for (&i, &d) in cand.iter().zip(dist).rev() {
-            savings[i as usize] += (later_max - d).max(0.0);
-            later_max = later_max.max(d);
+    for block in partial {
+        for (total, s) in savings.iter_mut().zip(block) {
+            *total += s;
         }
-        start += len;
     }
     savings
 }
+
+/// Blocks of rows summed in parallel by [`savings_bounds`] (a constant, so results do
+/// not depend on the machine).
+const SAVINGS_BLOCKS: usize = 16;
 
 /// A primitive-term sum that may have stopped early.
 #[derive(Debug, Clone, Copy)]
