@@ -1,6 +1,7 @@
 #!/usr/bin/env bash
 # Runs every test of the project: Rust (all crates, unit + integration + doc tests),
-# then the Python package (wheel built by maturin into a virtualenv, pytest).
+# then the Python package (wheel built by maturin into a virtualenv; mypy stubtest of the
+# extension stub, mypy of the package; pytest).
 #
 #   scripts/test.sh            # what the README and CI run
 #
@@ -32,4 +33,8 @@ fi
 rm -rf target/wheels
 "$venv/bin/maturin" build --release -q -m crates/py/Cargo.toml -i "$venv/bin/python" --out target/wheels
 "$venv/bin/pip" install -q --force-reinstall --no-deps target/wheels/primfit-*.whl
+# The hand-written stub of the extension module against the compiled module, then the
+# package's own annotations (its sources; the stub stands in for the extension).
+"$venv/bin/python" -m mypy.stubtest primfit._primfit
+"$venv/bin/python" -m mypy --cache-dir target/mypy crates/py/python/primfit
 "$venv/bin/python" -m pytest -q crates/py/tests -p no:cacheprovider

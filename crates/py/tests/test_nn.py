@@ -1,4 +1,4 @@
-"""primfit.nn / nine / train: the existence networks and the nine-cylinder experiments.
+"""primfit.research (nn / nine / train): the existence networks and the nine-cylinder experiments.
 
 These tests need torch; they skip without it, and fail under PRIMFIT_REQUIRE_ALL=1.
 """
@@ -12,7 +12,7 @@ import pytest
 from conftest import require
 
 import primfit
-from primfit import nine
+from primfit.research import nine
 
 
 @pytest.fixture(scope="module")
@@ -24,14 +24,14 @@ def torch():
 
 @pytest.fixture(scope="module")
 def pnn(torch):
-    import primfit.nn as pnn
+    import primfit.research.nn as pnn
 
     return pnn
 
 
 @pytest.fixture(scope="module")
 def ptrain(torch):
-    import primfit.train as ptrain
+    import primfit.research.train as ptrain
 
     return ptrain
 
@@ -203,7 +203,7 @@ def test_cross_entropy_baseline_predicts_bits(torch, ptrain):
 
 
 def test_score():
-    from primfit.train import score
+    from primfit.research.train import score
 
     existence = np.zeros((2, 9))
     existence[0, 0] = 0.9  # scene 0 (mask 1) right; scene 1 (mask 3) misses bit 1

@@ -29,7 +29,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from . import _primfit
+from . import _primfit, synth
+from ._convert import _floats, _ints, _points
 from ._primfit import __version__
 
 __all__ = [
@@ -50,36 +51,6 @@ __all__ = [
 
 ArrayLike = npt.ArrayLike
 Limit = int | float | str | None
-
-
-def _numeric(name: str, x: ArrayLike, kinds: str) -> np.ndarray:
-    a = np.asarray(x)
-    if a.dtype.kind not in kinds:
-        raise TypeError(f"{name} must be a numeric array, got dtype {a.dtype}")
-    return a
-
-
-def _floats(name: str, x: ArrayLike, ndim: int) -> np.ndarray:
-    """``x`` as a C-ordered float64 array with ``ndim`` dimensions."""
-    a = _numeric(name, x, "fiu")
-    if a.ndim != ndim:
-        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {a.shape}")
-    return np.ascontiguousarray(a, dtype=np.float64)
-
-
-def _points(name: str, x: ArrayLike) -> np.ndarray:
-    """An ``(M, 3)`` float64 array (shape, emptiness and finiteness are checked in Rust)."""
-    return _floats(name, x, 2)
-
-
-def _ints(name: str, x: ArrayLike, ndim: int = 1) -> np.ndarray:
-    """``x`` as a C-ordered int64 array (integer dtypes only: floats are not truncated)."""
-    a = _numeric(name, x, "iu")
-    if a.ndim != ndim:
-        raise ValueError(f"{name} must have {ndim} dimension(s), got shape {a.shape}")
-    if a.dtype.kind == "u" and a.size and a.max() > np.iinfo(np.int64).max:
-        raise ValueError(f"{name} has an index larger than 2**63 - 1")
-    return np.ascontiguousarray(a, dtype=np.int64)
 
 
 class ChamferProblem:
@@ -512,6 +483,3 @@ def write_mesh(
     if isinstance(primitives, FitResult):
         primitives = primitives.primitives
     _primfit.write_mesh(os.fspath(path), json.dumps(list(primitives)), ascii=ascii)
-
-
-from . import synth  # noqa: E402  (uses the helpers above)

@@ -18,7 +18,8 @@ from typing import Any
 import numpy as np
 import numpy.typing as npt
 
-from . import _ints, _points, _primfit
+from . import _primfit
+from ._convert import _ints, _points
 
 __all__ = ["hallway", "nine_cylinders", "pipe", "registration", "six_in_a_row"]
 

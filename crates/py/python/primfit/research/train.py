@@ -2,12 +2,12 @@
 
 Losses: ``chamfer`` (self-supervised: the probabilistic chamfer distance of each
 scene, computed in Rust through :class:`primfit.torch.ChamferLoss`), ``ce`` (supervised
-baseline of the thesis: cross-entropy over the 512 subsets, :class:`~primfit.nn.PointNet2`
+baseline of the thesis: cross-entropy over the 512 subsets, :class:`~primfit.research.nn.PointNet2`
 only). Optimiser: Adam. Runs on CPU; uses CUDA when ``torch.cuda.is_available()``.
 
 Command line (one training run, then scores on a test set)::
 
-    python -m primfit.train --train all --test all --loss chamfer --arch local --epochs 40
+    python -m primfit.research.train --train all --test all --loss chamfer --arch local --epochs 40
 
 Scores: *scene* accuracy (every one of the nine existences right), *primitive* accuracy
 (share of the nine per-scene decisions right), and, of the true cylinders, the share
@@ -29,7 +29,7 @@ from torch import Tensor, nn
 from . import nine
 from .nine import N_CANDIDATES, N_SUBSETS, NineScenes, SceneSpec
 from .nn import LocalExistence, PointNet2
-from .torch import chamfer_loss
+from ..torch import chamfer_loss
 
 __all__ = [
     "ARCHS",
@@ -69,8 +69,8 @@ class TrainConfig:
     Attributes
     ----------
     arch : {"local", "pointnet2"}
-        :class:`~primfit.nn.LocalExistence` (default: it generalises, see the README) or
-        the thesis's :class:`~primfit.nn.PointNet2`.
+        :class:`~primfit.research.nn.LocalExistence` (default: it generalises, see the README) or
+        the thesis's :class:`~primfit.research.nn.PointNet2`.
     loss : {"chamfer", "ce"}
         Self-supervised probabilistic chamfer, or the 512-class cross-entropy baseline.
     epochs, batch_size : int
@@ -229,7 +229,7 @@ def copies_for(masks: np.ndarray, scenes: int) -> int:
 def _parser() -> argparse.ArgumentParser:
     d = TrainConfig()
     s = SceneSpec()
-    p = argparse.ArgumentParser(prog="python -m primfit.train", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m primfit.research.train", description=__doc__.split("\n\n")[0])
     p.add_argument("--train", default="all", choices=sorted(SPLITS), help="training split (default all)")
     p.add_argument("--test", default="all", choices=sorted(SPLITS), help="test split (default all)")
     p.add_argument("--scenes", type=int, default=512, help="about this many training scenes (copies of the split)")

@@ -1,4 +1,4 @@
-"""The nine-cylinder scenes of thesis §5.5, as training data for :mod:`primfit.nn`.
+"""The nine-cylinder scenes of thesis §5.5, as training data for :mod:`primfit.research.nn`.
 
 Nine vertical cylinders (candidate k at ``((k % 3 - 1) * pitch, (k // 3 - 1) * pitch, 0)``)
 are the whole candidate set; a scene is one of the 2⁹ = 512 subsets (bit k of ``mask``
@@ -31,8 +31,8 @@ from dataclasses import dataclass, replace
 
 import numpy as np
 
-from . import ChamferProblem, chamfer_problems
-from .synth import nine_cylinders
+from .. import ChamferProblem, chamfer_problems
+from ..synth import nine_cylinders
 
 __all__ = [
     "N_CANDIDATES",

@@ -22,6 +22,7 @@ from __future__ import annotations
 
 from collections.abc import Sequence
 
+import numpy.typing as npt
 import torch
 from torch import Tensor, nn
 
@@ -230,9 +231,12 @@ class LocalExistence(nn.Module):
         Multiplier of the layer widths (1.0: point MLP 32-64-128, head 64).
     """
 
+    #: Candidate centres (N, 3), a buffer (moves with the module's device).
+    centres: Tensor
+
     def __init__(
         self,
-        centres: Tensor | Sequence[Sequence[float]],
+        centres: Tensor | npt.ArrayLike,
         *,
         radius: float = 0.7,
         scale: float = 1.0,
@@ -246,7 +250,7 @@ class LocalExistence(nn.Module):
         self.point_mlp = _mlp([3, w(32), w(64), w(128)])
         self.head = nn.Sequential(_mlp([w(128) + 1, w(64)]), nn.Linear(w(64), 1))
 
-    def set_candidates(self, centres: Tensor | Sequence[Sequence[float]]) -> None:
+    def set_candidates(self, centres: Tensor | npt.ArrayLike) -> None:
         """Replaces the candidate centres (any number N; the weights are shared)."""
         self.centres = torch.as_tensor(centres, dtype=torch.float32, device=self.centres.device).reshape(-1, 3)
 

@@ -1,11 +1,11 @@
 """The thesis's chapter-5 experiments on the nine-cylinder scenes, as one command.
 
-    python -m primfit.experiments --out results/
+    python -m primfit.research.experiments --out results/
 
 Trains, for each of Table 5.1's rows (all → all, multi → single, single → pairs), the
 thesis's PointNet++ with the self-supervised probabilistic chamfer loss, the same
 backbone with the supervised 512-class cross-entropy, and the candidate-local network
-(:class:`primfit.nn.LocalExistence`) with the chamfer loss; then tests each all → all
+(:class:`primfit.research.nn.LocalExistence`) with the chamfer loss; then tests each all → all
 model on scenes with growing alignment offset (thesis figure 5-2). Writes
 
 * ``results.md``: the table (ours beside the thesis's numbers), timings, settings;
@@ -232,9 +232,9 @@ def _plots(results: Sequence[JobResult], out: Path) -> None:
     fig, axes = plt.subplots(1, len(ROWS), figsize=(12, 3.5))
     for ax, (train, test, label) in zip(axes, ROWS):
         for arch, loss, mlabel in MODELS:
-            r = _find(results, arch, loss, train)
-            if r is not None and loss == "chamfer":
-                ax.plot(np.arange(1, len(r.history) + 1), r.history, label=mlabel)
+            run = _find(results, arch, loss, train)
+            if run is not None and loss == "chamfer":
+                ax.plot(np.arange(1, len(run.history) + 1), run.history, label=mlabel)
         ax.set(title=f"{label}: chamfer loss", xlabel="epoch", yscale="log")
         ax.grid(alpha=0.3)
     axes[0].legend()
@@ -293,7 +293,7 @@ def write_report(results: Sequence[JobResult], config: ExperimentConfig, seconds
 
 def _parser() -> argparse.ArgumentParser:
     d = ExperimentConfig()
-    p = argparse.ArgumentParser(prog="python -m primfit.experiments", description=__doc__.split("\n\n")[0])
+    p = argparse.ArgumentParser(prog="python -m primfit.research.experiments", description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="results", help="output folder (default results/)")
     p.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="worker processes")
     p.add_argument("--epochs", type=int, default=d.epochs)
