@@ -280,7 +280,7 @@ fn lm_round(
 }
 
 /// Re-assigns the points to `current` and replaces each primitive (and its size limits)
-/// that another configured type explains better ([`retype`]).
+/// that another configured type explains better ([`retype()`]).
 fn retype_round(
     ctx: &RefineContext<'_>,
     weights: &Weights,
