@@ -25,6 +25,7 @@ mod mesh;
 mod numeric;
 mod planar;
 mod shapes;
+mod size;
 mod sphere;
 #[cfg(test)]
 mod tests;
