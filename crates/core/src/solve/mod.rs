@@ -15,6 +15,28 @@
 //! projected method reaches and then drops from the quasi-Newton model, while the logit
 //! form only approaches them as `z → ±∞`, where the factor `p(1 − p)` vanishes and progress
 //! stalls. Measurements: `docs/solver.md`.
+//!
+//! ```
+//! use primfit_core::chamfer::{ChamferOptions, Coefficients, SampleSets};
+//! use primfit_core::na::Point3;
+//! use primfit_core::progress::Silent;
+//! use primfit_core::solve::{SolverOptions, solve};
+//!
+//! // Ten points on a segment; candidate 0 has samples on it, candidate 1 lies far away.
+//! let cloud: Vec<Point3<f64>> = (0..10)
+//!     .map(|k| Point3::new(0.1 * k as f64, 0.0, 0.0))
+//!     .collect();
+//! let samples = [
+//!     Point3::new(0.0, 0.0, 0.0),
+//!     Point3::new(0.9, 0.0, 0.0),
+//!     Point3::new(5.0, 5.0, 0.0),
+//! ];
+//! let candidates = SampleSets::new(&samples, &[0, 0, 1], 2).unwrap();
+//! let loss = ChamferOptions { cap: 1.0, ..Default::default() };
+//! let coeffs = Coefficients::build(&cloud, &candidates, &loss, &Silent).unwrap();
+//! let solution = solve(&coeffs, &SolverOptions::default(), &Silent).unwrap();
+//! assert_eq!(solution.exists, [true, false]);
+//! ```
 
 mod lbfgs;
 mod polish;
@@ -28,9 +50,9 @@ use crate::progress::Progress;
 use crate::{Error, Result};
 use lbfgs::lbfgs_on_logits;
 
-/// Default [`SolverOptions::max_iterations`] (iterations, dimensionless): the most L-BFGS
-/// iterations of a solve (of its search phase when it has two). A cap on the time spent
-/// on a slowly converging problem; a run usually stops earlier, on `ftol` or `pgtol`.
+/// Default [`SolverOptions::max_iterations`] (a count of iterations): the most L-BFGS
+/// iterations of a solve (of its search phase when it has two), a cap on the time spent
+/// on a slowly converging problem. The other stops are `ftol` and `pgtol`.
 pub const DEFAULT_MAX_ITERATIONS: usize = 200;
 
 /// How existence is parameterised during the continuous optimisation.
@@ -68,7 +90,7 @@ impl Parameterization {
 pub struct SolverOptions {
     /// Box (default) or logit.
     pub parameterization: Parameterization,
-    /// Maximum L-BFGS iterations.
+    /// Maximum L-BFGS iterations (default [`DEFAULT_MAX_ITERATIONS`]).
     pub max_iterations: usize,
     /// Number of stored (s, y) pairs.
     pub memory: usize,
