@@ -397,3 +397,39 @@ fn bad_sample_sets_are_errors() {
         .is_err()
     );
 }
+
+/// Row sampling keeps whole rows and rescales the point weight by J / rows kept.
+#[test]
+fn row_sample_keeps_whole_rows_and_reweights() {
+    let (cloud, sets) = crate::chamfer::test_problems::segments(1);
+    let o = ChamferOptions {
+        cap: 0.05,
+        beta: Some(4),
+        ..Default::default()
+    };
+    let c = Coefficients::build(&cloud, &sets, &o, &Silent).unwrap();
+    let sub = c.row_sample(c.points() / 4);
+    let kept = sub.points();
+    assert!(kept > 0 && kept < c.points(), "{kept} of {}", c.points());
+    let scale = sub.options.point_weight / c.options.point_weight;
+    assert!((scale - c.points() as f64 / kept as f64).abs() < 1e-12);
+    // Each kept row is a row of the full coefficients.
+    let full: Vec<(Vec<u32>, Vec<u64>)> = (0..c.points())
+        .map(|j| {
+            let r = c.row(j);
+            (
+                c.cand[r.clone()].to_vec(),
+                c.dist[r].iter().map(|d| d.to_bits()).collect(),
+            )
+        })
+        .collect();
+    for j in 0..kept {
+        let r = sub.row(j);
+        let row = (
+            sub.cand[r.clone()].to_vec(),
+            sub.dist[r].iter().map(|d| d.to_bits()).collect(),
+        );
+        assert!(full.contains(&row));
+    }
+    assert_eq!(c.row_sample(usize::MAX).entries(), c.entries());
+}
