@@ -4,12 +4,12 @@
 
 use std::time::Instant;
 
-use primfit::ShapeKind;
-use primfit::fit::{FitOptions, fit};
-use primfit::metrics::{MetricsOptions, evaluate};
-use primfit::progress::Silent;
-use primfit::refine::RefineOptions;
-use primfit::synth::{Density, Misalignment, Noise, PipeParams, Scene, pipe};
+use primfit_core::ShapeKind;
+use primfit_core::fit::{FitOptions, fit};
+use primfit_core::metrics::{MetricsOptions, evaluate};
+use primfit_core::progress::Silent;
+use primfit_core::refine::RefineOptions;
+use primfit_core::synth::{Density, Misalignment, Noise, PipeParams, Scene, pipe};
 
 /// Error and time of one fit.
 #[derive(Debug, Clone, Copy)]
@@ -58,7 +58,7 @@ pub fn pipe_options(spacing: f64) -> FitOptions {
 }
 
 /// The DESIGN §4 measures of `prims` against `scene`'s cloud, with `seconds`.
-pub fn measure(scene: &Scene, prims: &[primfit::Primitive], seconds: f64) -> Outcome {
+pub fn measure(scene: &Scene, prims: &[primfit_core::Primitive], seconds: f64) -> Outcome {
     let m =
         evaluate(&scene.cloud.points, prims, None, &MetricsOptions::default()).expect("metrics");
     Outcome {

@@ -18,11 +18,11 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use primfit::atlas::MeshShape;
-use primfit::io;
-use primfit::progress::Silent;
-use primfit::register::{RegisterOptions, register};
-use primfit::synth::{RegistrationParams, asymmetric_object, registration};
+use primfit_core::atlas::MeshShape;
+use primfit_core::io;
+use primfit_core::progress::Silent;
+use primfit_core::register::{RegisterOptions, register};
+use primfit_core::synth::{RegistrationParams, asymmetric_object, registration};
 use serde_json::json;
 
 fn main() {
@@ -53,7 +53,7 @@ fn main() {
         }
         None => asymmetric_object(),
     };
-    let (lo, hi) = primfit::cloud::bounds_of(&mesh.mesh.vertices).expect("vertices");
+    let (lo, hi) = primfit_core::cloud::bounds_of(&mesh.mesh.vertices).expect("vertices");
     let size = (hi - lo).norm();
     if let Some(dir) = &scenes {
         std::fs::create_dir_all(dir).expect("scene folder");

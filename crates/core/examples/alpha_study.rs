@@ -9,7 +9,7 @@
 mod common;
 
 use common::{fit_both, header, measure, pipe_options, pipe_scene, row, trials, truth_row};
-use primfit::chamfer::PointModel;
+use primfit_core::chamfer::PointModel;
 
 fn main() {
     let n = trials();
