@@ -55,7 +55,7 @@ pub mod synth;
 pub use atlas::{Shape, ShapeKind, TriMesh};
 pub use cloud::PointCloud;
 pub use error::{Error, Result};
-pub use primitive::{Pose, Primitive};
+pub use primitive::{Hit, Pose, Primitive};
 
 /// The library version, written into every `result.json` as `"primfit"`.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");

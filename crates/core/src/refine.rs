@@ -107,10 +107,9 @@ use rayon::prelude::*;
 use crate::atlas::{Shape, ShapeKind};
 use crate::chamfer::{ChamferOptions, Coefficients, Evaluator};
 use crate::lattice::{CandidateSet, orientations};
-use crate::metrics::PrimitiveIndex;
 use crate::progress::Silent;
 use crate::solve::{Moves, polish};
-use crate::spatial::{PointIndex, median_spacing};
+use crate::spatial::{PointIndex, PrimitiveIndex, median_spacing};
 use crate::{Error, Pose, Primitive, Result};
 
 /// Options of [`refine`].
