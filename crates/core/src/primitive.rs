@@ -43,6 +43,20 @@ impl Pose {
             scale: 1.0,
         }
     }
+    /// The pose of `rotation` and `scale` that takes the local point `local` to the scene
+    /// point `scene`: its translation is `scene − s·R·local` (scene units).
+    pub fn anchored(
+        rotation: UnitQuaternion<f64>,
+        scale: f64,
+        local: &Point3<f64>,
+        scene: &Point3<f64>,
+    ) -> Self {
+        Pose {
+            rotation,
+            translation: scene.coords - rotation * (local.coords * scale),
+            scale,
+        }
+    }
     /// Maps a local point to the scene.
     #[inline]
     pub fn to_scene(&self, p: &Point3<f64>) -> Point3<f64> {
@@ -347,6 +361,15 @@ mod tests {
         ] {
             assert!(Primitive::from_json(&bad, &load).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn anchored_pose_takes_the_local_point_to_the_scene_point() {
+        let rotation = UnitQuaternion::from_euler_angles(0.4, -0.1, 0.7);
+        let (local, scene) = (Point3::new(0.3, -1.0, 2.0), Point3::new(5.0, 1.0, -2.0));
+        let pose = Pose::anchored(rotation, 1.5, &local, &scene);
+        assert!((pose.to_scene(&local) - scene).norm() < 1e-12);
+        assert_eq!((pose.rotation, pose.scale), (rotation, 1.5));
     }
 
     #[test]

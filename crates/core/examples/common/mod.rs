@@ -11,6 +11,9 @@ use primfit_core::progress::Silent;
 use primfit_core::refine::RefineOptions;
 use primfit_core::synth::{Density, Misalignment, Noise, PipeParams, Scene, pipe};
 
+/// The seed of trial 0; trial `k` is the pipe of seed `FIRST_SEED + k`.
+pub const FIRST_SEED: u64 = 1000;
+
 /// Error and time of one fit.
 #[derive(Debug, Clone, Copy)]
 pub struct Outcome {
@@ -82,6 +85,23 @@ pub fn fit_both(scene: &Scene, options: &FitOptions) -> (Outcome, Outcome) {
         ..options.clone()
     };
     (run(options), run(&refined))
+}
+
+/// The measures of the true primitives of trials `0..n` (no time).
+pub fn truth_outcomes(n: u64) -> Vec<Outcome> {
+    (0..n)
+        .map(|k| {
+            let scene = pipe_scene(FIRST_SEED + k);
+            measure(&scene, &scene.truth, 0.0)
+        })
+        .collect()
+}
+
+/// [`fit_both`] on trials `0..n`: the plain outcomes and the refined ones, in trial order.
+pub fn fit_trials(n: u64, options: &FitOptions) -> (Vec<Outcome>, Vec<Outcome>) {
+    (0..n)
+        .map(|k| fit_both(&pipe_scene(FIRST_SEED + k), options))
+        .unzip()
 }
 
 /// `mean ± std` of `values` (population standard deviation), `precision` decimals.
