@@ -197,6 +197,19 @@ impl Primitive {
     /// depth `t ≥ 0` is needed; [`Shape::ray_intersect`] gives it for every atlas type.
     /// The normal sets the projected deviation `s = σ / |cos θ|`
     /// ([`crate::ray::RayModel::projected_sigma`]).
+    ///
+    /// ```
+    /// use primfit_core::na::{Point3, UnitQuaternion, Vector3};
+    /// use primfit_core::{Pose, Primitive, Shape};
+    ///
+    /// // A sphere of radius 1 five metres along x, seen from the origin.
+    /// let at = Pose::new(UnitQuaternion::identity(), Vector3::new(5.0, 0.0, 0.0));
+    /// let sphere = Primitive::new(Shape::Sphere { diameter: 2.0 }, at);
+    /// let hit = sphere.first_hit(&Point3::origin(), &Vector3::x()).unwrap();
+    /// assert!((hit.depth - 4.0).abs() < 1e-12);
+    /// assert!((hit.normal + Vector3::x()).norm() < 1e-12); // facing the ray
+    /// assert!(sphere.first_hit(&Point3::origin(), &Vector3::y()).is_none());
+    /// ```
     pub fn first_hit(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<Hit> {
         let local_origin = self.pose.to_local(origin);
         // Dividing by the scale keeps `t` in scene units: o + t·d ↦ o_l + t·(Rᵀ d / scale).
