@@ -1,6 +1,6 @@
 """NumPy/SciPy reference of primfit's probabilistic chamfer fit (the thesis's approach).
 
-Used only by the benchmark table (``examples/bench_table.rs``, ``scripts/bench.sh``) to
+Used only by the benchmark table (``crates/core/examples/bench_table.rs``, ``scripts/bench.sh``) to
 show the speed-up of the Rust fitter over a straightforward vectorised NumPy + SciPy
 implementation of the same loss (DESIGN §2), on the same scenes and settings.
 

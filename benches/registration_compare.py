@@ -13,7 +13,7 @@ all threads) over the same span, which other work on a shared machine disturbs l
         [--model mesh.ply] [--no-rotation-only] [--keep DIR]
 
 Needs `open3d` (pip; on Debian also `apt-get install libusb-1.0-0`). Without it, only
-primfit's table is printed. primfit's side is `examples/registration_bench.rs`, built
+primfit's table is printed. primfit's side is `crates/core/examples/registration_bench.rs`, built
 with `cargo build --release --example registration_bench`.
 """
 

@@ -1,6 +1,6 @@
 #!/usr/bin/env bash
 # The reproducible benchmark table (DESIGN §5, issue 4): builds the release fitter, makes
-# sure a Python with NumPy + SciPy is at hand, then runs examples/bench_table.rs, which
+# sure a Python with NumPy + SciPy is at hand, then runs crates/core/examples/bench_table.rs, which
 # fits every scene in its own child process (1 thread and all cores) and runs the
 # NumPy/SciPy reference (benches/numpy_reference.py) on the same scenes, and prints one
 # markdown table plus per-stage timings.

@@ -1,4 +1,6 @@
-//! [`Primitive`] = a [`Shape`] placed in the scene by a [`Pose`].
+//! [`Primitive`] = a [`Shape`] placed in the scene by a [`Pose`]; what the fitter asks of
+//! one (distance, closest point, samples, area, mesh, JSON) and where a ray first crosses
+//! it ([`Primitive::first_hit`], a [`Hit`]).
 
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use serde_json::{Value, json};
@@ -39,6 +41,20 @@ impl Pose {
             rotation,
             translation,
             scale: 1.0,
+        }
+    }
+    /// The pose of `rotation` and `scale` that takes the local point `local` to the scene
+    /// point `scene`: its translation is `scene − s·R·local` (scene units).
+    pub fn anchored(
+        rotation: UnitQuaternion<f64>,
+        scale: f64,
+        local: &Point3<f64>,
+        scene: &Point3<f64>,
+    ) -> Self {
+        Pose {
+            rotation,
+            translation: scene.coords - rotation * (local.coords * scale),
+            scale,
         }
     }
     /// Maps a local point to the scene.
@@ -101,6 +117,23 @@ impl Pose {
     }
 }
 
+/// The first crossing of a ray with a primitive ([`Primitive::first_hit`]).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Hit {
+    /// Distance from the ray origin to the crossing (scene units, ≥ 0).
+    pub depth: f64,
+    /// Unit surface normal at the crossing (scene frame), oriented against the ray
+    /// (`normal · dir ≤ 0`).
+    pub normal: Vector3<f64>,
+}
+
+impl Hit {
+    /// `|cos θ|` between the ray and the surface normal, in `[0, 1]`.
+    pub fn incidence(&self, dir: &Vector3<f64>) -> f64 {
+        self.normal.dot(dir).abs().min(1.0)
+    }
+}
+
 /// A primitive: a shape and where it is.
 #[derive(Debug, Clone)]
 pub struct Primitive {
@@ -155,6 +188,45 @@ impl Primitive {
     /// The number of free parameters (pose: 3 rotation + 3 translation + 1 scale, plus sizes).
     pub fn parameter_count(&self) -> usize {
         7 + self.shape.size_parameter_count()
+    }
+    /// The first crossing of the ray `origin + t·dir` (`dir` a unit vector, scene frame,
+    /// `t ≥ 0`) with this primitive, or `None` when it misses. Non-finite input gives `None`.
+    ///
+    /// The ray measurement model (thesis §4.2.1, assumption 1) lets a primitive generate
+    /// **one** point per ray, around its first crossing, so only the first crossing at
+    /// depth `t ≥ 0` is needed; [`Shape::ray_intersect`] gives it for every atlas type.
+    /// The normal sets the projected deviation `s = σ / |cos θ|`
+    /// ([`crate::ray::RayModel::projected_sigma`]).
+    ///
+    /// ```
+    /// use primfit_core::na::{Point3, UnitQuaternion, Vector3};
+    /// use primfit_core::{Pose, Primitive, Shape};
+    ///
+    /// // A sphere of radius 1 five metres along x, seen from the origin.
+    /// let at = Pose::new(UnitQuaternion::identity(), Vector3::new(5.0, 0.0, 0.0));
+    /// let sphere = Primitive::new(Shape::Sphere { diameter: 2.0 }, at);
+    /// let hit = sphere.first_hit(&Point3::origin(), &Vector3::x()).unwrap();
+    /// assert!((hit.depth - 4.0).abs() < 1e-12);
+    /// assert!((hit.normal + Vector3::x()).norm() < 1e-12); // facing the ray
+    /// assert!(sphere.first_hit(&Point3::origin(), &Vector3::y()).is_none());
+    /// ```
+    pub fn first_hit(&self, origin: &Point3<f64>, dir: &Vector3<f64>) -> Option<Hit> {
+        let local_origin = self.pose.to_local(origin);
+        // Dividing by the scale keeps `t` in scene units: o + t·d ↦ o_l + t·(Rᵀ d / scale).
+        let local_dir = self.pose.rotation.inverse_transform_vector(dir) / self.pose.scale;
+        let depth = self.shape.ray_intersect(&local_origin, &local_dir)?;
+        if !depth.is_finite() {
+            return None;
+        }
+        let p = local_origin + local_dir * depth;
+        let n_local = local_normal(&self.shape, &p, &local_dir)
+            .try_normalize(1e-300)
+            .unwrap_or_else(|| -local_dir.normalize());
+        let mut normal = self.pose.rotation * n_local;
+        if normal.dot(dir) > 0.0 {
+            normal = -normal;
+        }
+        Some(Hit { depth, normal })
     }
     /// Parses one DESIGN §3 primitive entry. `load_mesh` turns a mesh entry's `source`
     /// into its mesh (e.g. by reading the PLY file it names).
@@ -225,6 +297,32 @@ fn numbers(v: Option<&Value>, n: usize, what: &str) -> Result<Vec<f64>> {
     Ok(out)
 }
 
+/// An (unnormalised) normal of `shape` at its surface point `p` (local frame), for a ray
+/// along `dir` (local frame).
+fn local_normal(shape: &Shape, p: &Point3<f64>, dir: &Vector3<f64>) -> Vector3<f64> {
+    match shape {
+        Shape::Disk { .. } | Shape::Square { .. } => Vector3::z(),
+        Shape::Cylinder { .. } => Vector3::new(p.x, p.y, 0.0),
+        Shape::Sphere { .. } => p.coords,
+        Shape::Elbow { bend, .. } => {
+            let rho = p.x.hypot(p.y);
+            if rho == 0.0 {
+                return Vector3::z();
+            }
+            // Minus the nearest point of the centre-line circle of radius `bend`.
+            p.coords - Vector3::new(p.x, p.y, 0.0) * (bend / rho)
+        }
+        Shape::Mesh(_) => mesh_normal(shape, p, dir),
+    }
+}
+
+/// A mesh's normal at `p` from the closest point of a point just in front of it on the ray.
+fn mesh_normal(shape: &Shape, p: &Point3<f64>, dir: &Vector3<f64>) -> Vector3<f64> {
+    let eps = 1e-6 * shape.bounding_radius().max(1e-3);
+    let q = p - dir.normalize() * eps;
+    q - shape.closest_point(&q)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -276,5 +374,73 @@ mod tests {
         ] {
             assert!(Primitive::from_json(&bad, &load).is_err(), "{bad}");
         }
+    }
+
+    #[test]
+    fn anchored_pose_takes_the_local_point_to_the_scene_point() {
+        let rotation = UnitQuaternion::from_euler_angles(0.4, -0.1, 0.7);
+        let (local, scene) = (Point3::new(0.3, -1.0, 2.0), Point3::new(5.0, 1.0, -2.0));
+        let pose = Pose::anchored(rotation, 1.5, &local, &scene);
+        assert!((pose.to_scene(&local) - scene).norm() < 1e-12);
+        assert_eq!((pose.rotation, pose.scale), (rotation, 1.5));
+    }
+
+    #[test]
+    fn first_hits_and_normals_of_every_analytic_type() {
+        let x = Vector3::x();
+        let o = Point3::origin();
+        let at = |shape: Shape, rot: UnitQuaternion<f64>| {
+            Primitive::new(shape, Pose::new(rot, Vector3::new(5.0, 0.0, 0.0)))
+        };
+        let facing =
+            UnitQuaternion::from_axis_angle(&Vector3::y_axis(), std::f64::consts::FRAC_PI_2);
+        let square = at(Shape::Square { side: 1.0 }, facing)
+            .first_hit(&o, &x)
+            .unwrap();
+        assert!((square.depth - 5.0).abs() < 1e-12);
+        assert!((square.normal + x).norm() < 1e-12);
+        let cyl = Shape::Cylinder {
+            length: 1.0,
+            radius: 0.5,
+        };
+        let h = at(cyl, UnitQuaternion::identity())
+            .first_hit(&o, &x)
+            .unwrap();
+        assert!((h.depth - 4.5).abs() < 1e-12 && (h.normal + x).norm() < 1e-12);
+        let sph = at(Shape::Sphere { diameter: 2.0 }, UnitQuaternion::identity())
+            .first_hit(&o, &x)
+            .unwrap();
+        assert!((sph.depth - 4.0).abs() < 1e-12 && (sph.normal + x).norm() < 1e-12);
+        // From the torus centre (5, 0, 0) along the bisector of the quarter: the inner wall
+        // at bend − radius, normal pointing back to the centre.
+        let elbow = Shape::Elbow {
+            bend: 1.0,
+            radius: 0.2,
+        };
+        let d = Vector3::new(1.0, 1.0, 0.0).normalize();
+        let c = Point3::new(5.0, 0.0, 0.0);
+        let h = at(elbow, UnitQuaternion::identity())
+            .first_hit(&c, &d)
+            .unwrap();
+        assert!((h.depth - 0.8).abs() < 1e-9, "{}", h.depth);
+        assert!((h.normal + d).norm() < 1e-9);
+        // Oblique incidence on a square: |cos| = cos 60°.
+        let tilted = at(Shape::Square { side: 20.0 }, facing)
+            .first_hit(&o, &Vector3::new(0.5, 0.75f64.sqrt(), 0.0))
+            .unwrap();
+        assert!((tilted.incidence(&Vector3::new(0.5, 0.75f64.sqrt(), 0.0)) - 0.5).abs() < 1e-12);
+        assert!((tilted.depth - 10.0).abs() < 1e-9);
+    }
+
+    #[test]
+    fn scaled_poses_keep_hit_depth_in_scene_units_and_misses_are_none() {
+        let mut pose = Pose::new(UnitQuaternion::identity(), Vector3::new(5.0, 0.0, 0.0));
+        pose.scale = 2.0;
+        let sphere = Primitive::new(Shape::Sphere { diameter: 1.0 }, pose);
+        let h = sphere.first_hit(&Point3::origin(), &Vector3::x()).unwrap();
+        assert!((h.depth - 4.0).abs() < 1e-12);
+        assert!(sphere.first_hit(&Point3::origin(), &Vector3::y()).is_none());
+        let nan = Point3::new(f64::NAN, 0.0, 0.0);
+        assert!(sphere.first_hit(&nan, &Vector3::x()).is_none());
     }
 }

@@ -1,13 +1,17 @@
 //! [`PointIndex`]: exact nearest-neighbour queries over 3-D points; [`PlaneIndex`]: radius
-//! queries over 2-D points (the angles of [`crate::ray::RayTree`]).
+//! queries over 2-D points (the angles of [`crate::ray::RayTree`]); [`PrimitiveIndex`]:
+//! exact nearest-surface queries over primitives (built on [`PointIndex`]).
 //!
 //! The only module that imports kiddo; the rest of the crate sees plain
-//! `(index, squared distance)` pairs. Distances returned here are **squared**.
+//! `(index, squared distance)` pairs. Distances returned by [`PointIndex`] and
+//! [`PlaneIndex`] are **squared**; [`PrimitiveIndex`] returns plain surface distances.
 
 use std::num::NonZeroUsize;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Point3;
+
+use crate::{Error, Primitive, Result};
 
 /// A static KD-tree over points (kiddo's `ImmutableKdTree<f64, 3>`), tolerant of empty input.
 pub struct PointIndex {
@@ -155,6 +159,103 @@ impl PlaneIndex {
     }
 }
 
+/// Primitives of one bounding-radius class with a kd-tree over their centres.
+struct RadiusClass {
+    /// kd-tree over the centres; item `k` is `ids[k]`.
+    tree: PointIndex,
+    /// Indices into the primitive slice.
+    ids: Vec<usize>,
+    /// Largest bounding radius in the class.
+    max_radius: f64,
+}
+
+/// An exact nearest-surface index over a set of primitives.
+///
+/// Primitives are grouped by bounding radius (classes a factor 2 apart) so one huge
+/// primitive does not widen every search. A query first takes, in each class, the
+/// primitive with the nearest centre (an upper bound `b` on the answer), then examines
+/// every primitive whose centre lies within `b + max_radius` of the point and whose
+/// bounding ball is nearer than the best distance so far. The result is exact, since
+/// `distance(p, surface) ≥ |p − centre| − bounding_radius`.
+pub struct PrimitiveIndex<'a> {
+    prims: &'a [Primitive],
+    classes: Vec<RadiusClass>,
+}
+
+impl<'a> PrimitiveIndex<'a> {
+    /// Builds the index; errs when a primitive has a non-finite centre or radius.
+    pub fn new(prims: &'a [Primitive]) -> Result<Self> {
+        let mut by_class: Vec<(i32, Vec<usize>)> = Vec::new();
+        for (i, p) in prims.iter().enumerate() {
+            let (c, r) = (p.center(), p.bounding_radius());
+            if !(c.coords.iter().all(|v| v.is_finite()) && r.is_finite() && r >= 0.0) {
+                return Err(Error::invalid(format!(
+                    "primitive {i} has a non-finite centre or bounding radius"
+                )));
+            }
+            let class = if r > 0.0 {
+                r.log2().floor() as i32
+            } else {
+                i32::MIN
+            };
+            match by_class.iter_mut().find(|(k, _)| *k == class) {
+                Some((_, ids)) => ids.push(i),
+                None => by_class.push((class, vec![i])),
+            }
+        }
+        let classes = by_class
+            .into_iter()
+            .map(|(_, ids)| {
+                let centres: Vec<Point3<f64>> = ids.iter().map(|&i| prims[i].center()).collect();
+                let tree = PointIndex::new(&centres);
+                let max_radius = ids
+                    .iter()
+                    .map(|&i| prims[i].bounding_radius())
+                    .fold(0.0, f64::max);
+                Ok(RadiusClass {
+                    tree,
+                    ids,
+                    max_radius,
+                })
+            })
+            .collect::<Result<Vec<_>>>()?;
+        Ok(PrimitiveIndex { prims, classes })
+    }
+
+    /// The indexed primitives.
+    pub fn primitives(&self) -> &'a [Primitive] {
+        self.prims
+    }
+
+    /// The nearest primitive surface to `p`: `(index, distance)`, or `None` for an
+    /// empty index. Ties go to the lower index.
+    pub fn nearest(&self, p: &Point3<f64>) -> Option<(usize, f64)> {
+        let mut best: Option<(usize, f64)> = None;
+        let consider = |i: usize, best: &mut Option<(usize, f64)>| {
+            let d = self.prims[i].distance(p);
+            if best.is_none_or(|(bi, bd)| d < bd || (d == bd && i < bi)) {
+                *best = Some((i, d));
+            }
+        };
+        for class in &self.classes {
+            if let Some((k, _)) = class.tree.nearest(p) {
+                consider(class.ids[k as usize], &mut best);
+            }
+        }
+        for class in &self.classes {
+            let bound = best.map_or(f64::INFINITY, |(_, d)| d) + class.max_radius;
+            for (k, d2) in class.tree.within(p, bound * bound) {
+                let i = class.ids[k as usize];
+                let lower = d2.sqrt() - self.prims[i].bounding_radius();
+                if best.is_none_or(|(_, bd)| lower <= bd) {
+                    consider(i, &mut best);
+                }
+            }
+        }
+        best
+    }
+}
+
 /// Median distance from a point to its nearest other point, estimated on at most
 /// `max_probe` evenly spaced points: the cloud's typical point spacing. `None` when fewer
 /// than two distinct points exist.
@@ -180,6 +281,7 @@ pub fn median_spacing(points: &[Point3<f64>], index: &PointIndex, max_probe: usi
 #[cfg(test)]
 mod tests {
     use super::*;
+    use nalgebra::Vector3;
 
     fn grid() -> Vec<Point3<f64>> {
         (0..5)
@@ -232,6 +334,46 @@ mod tests {
             .collect();
         assert_eq!(got, want);
         assert!(PlaneIndex::new(&[]).within(q, 1.0).is_empty());
+    }
+
+    #[test]
+    fn primitive_index_is_exact_across_radius_classes() {
+        use crate::{Pose, Shape};
+        let at = |shape: Shape, x: f64| {
+            Primitive::new(
+                shape,
+                Pose::new(Default::default(), Vector3::new(x, 0.0, 0.0)),
+            )
+        };
+        // One huge sphere among small squares: its class must not hide a nearer square.
+        let mut prims: Vec<Primitive> = (0..10)
+            .map(|i| at(Shape::Square { side: 0.2 }, i as f64))
+            .collect();
+        prims.push(at(Shape::Sphere { diameter: 40.0 }, 30.0));
+        let index = PrimitiveIndex::new(&prims).unwrap();
+        for q in [
+            [3.1, 0.05, 0.3],
+            [-2.0, 1.0, 0.0],
+            [11.5, 0.0, 0.0],
+            [30.0, 0.0, 0.0],
+        ] {
+            let q = Point3::new(q[0], q[1], q[2]);
+            let (i, d) = index.nearest(&q).unwrap();
+            let brute = prims
+                .iter()
+                .map(|p| p.distance(&q))
+                .fold(f64::INFINITY, f64::min);
+            assert_eq!(d, brute, "{q}");
+            assert_eq!(prims[i].distance(&q), d);
+        }
+        assert!(
+            PrimitiveIndex::new(&[])
+                .unwrap()
+                .nearest(&Point3::origin())
+                .is_none()
+        );
+        let bad = [at(Shape::Square { side: 0.2 }, f64::NAN)];
+        assert!(PrimitiveIndex::new(&bad).is_err());
     }
 
     #[test]

@@ -2,6 +2,7 @@
 
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use primfit_core::metrics::*;
+use primfit_core::spatial::PrimitiveIndex;
 use primfit_core::synth::{HallwayParams, axis_rotation, hallway, sample_shape_local};
 use primfit_core::{Pose, Primitive, Shape};
 use rand::{RngExt, SeedableRng};

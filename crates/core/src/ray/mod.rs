@@ -26,7 +26,6 @@
 //! assert!(truth > nearest);
 //! ```
 
-pub mod crossing;
 mod fit;
 pub mod incremental;
 pub mod likelihood;
@@ -36,7 +35,6 @@ pub mod raytree;
 #[cfg(test)]
 mod tests;
 
-pub use crossing::{Hit, first_hit};
 pub use fit::{McmcFitOptions, fit_mcmc};
 pub use incremental::SceneState;
 pub use likelihood::{RayModel, crossing_terms, log_upper_tail, ray_log_likelihood};

@@ -8,8 +8,8 @@
 //! A candidate's angular bounds are the cone subtended by its bounding ball; a ball
 //! search in angle space returns a superset of the rays in that cone (widened in azimuth
 //! by `1/cos(elevation)`, and repeated across the seam when the cone reaches it, so even a
-//! 360° scan is answered exactly), and an exact cone test and ray–primitive crossing
-//! finish the job.
+//! 360° scan is answered exactly), and an exact cone test and the ray's first crossing
+//! ([`crate::Primitive::first_hit`]) finish the job.
 
 use std::collections::HashMap;
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
@@ -17,7 +17,6 @@ use std::f64::consts::{FRAC_PI_2, PI, TAU};
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
-use super::crossing::first_hit;
 use super::likelihood::{RayModel, crossing_terms, ray_log_likelihood_from_sums};
 use crate::spatial::PlaneIndex;
 use crate::{Error, PointCloud, Primitive, Result};
@@ -466,7 +465,7 @@ fn candidate_crossings(
     for (f, tree) in trees.iter().enumerate() {
         for j in tree.candidate_rays(prim) {
             let (dir, z) = (&rays.dirs[j as usize], rays.ranges[j as usize]);
-            let Some(hit) = first_hit(prim, tree.origin(), dir) else {
+            let Some(hit) = prim.first_hit(tree.origin(), dir) else {
                 continue;
             };
             let s = model.projected_sigma(hit.incidence(dir));
@@ -507,7 +506,7 @@ pub fn naive_log_likelihood(
             .iter()
             .zip(exists)
             .filter(|(_, e)| **e)
-            .filter_map(|(c, _)| first_hit(c, o, d))
+            .filter_map(|(c, _)| c.first_hit(o, d))
             .map(|hit| (hit.depth, model.projected_sigma(hit.incidence(d))))
             .collect();
         total += super::likelihood::ray_log_likelihood(model, z, &crossings);

@@ -306,7 +306,7 @@ fn ray_tree_ball_search_finds_every_crossing_ray_even_behind_and_at_the_poles() 
     let table = RayTable::build(&rays, &candidates, RayModel::default()).unwrap();
     for (i, c) in candidates.iter().enumerate() {
         let brute: Vec<u32> = (0..rays.len() as u32)
-            .filter(|&j| first_hit(c, &o, &rays.dirs[j as usize]).is_some())
+            .filter(|&j| c.first_hit(&o, &rays.dirs[j as usize]).is_some())
             .collect();
         assert!(!brute.is_empty(), "candidate {i}");
         assert_eq!(table.candidate_rays(i), &brute[..], "candidate {i}");

@@ -18,7 +18,7 @@ use rayon::prelude::*;
 use super::RefineContext;
 use super::lm::{Fitter, Weights};
 use super::ownership::{owners, owners_of};
-use crate::metrics::PrimitiveIndex;
+use crate::spatial::PrimitiveIndex;
 use crate::{Primitive, Result};
 
 /// Assignment rounds when neighbours are re-refined in a merge trial.

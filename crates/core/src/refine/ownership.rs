@@ -12,8 +12,8 @@ use nalgebra::Point3;
 use rayon::prelude::*;
 
 use crate::atlas::Shape;
-use crate::metrics::PrimitiveIndex;
 use crate::spatial::PointIndex;
+use crate::spatial::PrimitiveIndex;
 use crate::{Primitive, Result};
 
 /// Who owns a point: the primitive whose surface is nearest, within the trim distance;

@@ -174,15 +174,14 @@ fn solve_motion(
     } else {
         pose.scale
     };
-    let translation = if f.translation {
-        my - rotation * (mc * scale)
+    if f.translation {
+        Pose::anchored(rotation, scale, &Point3::from(mc), &Point3::from(my))
     } else {
-        pose.translation
-    };
-    Pose {
-        rotation,
-        translation,
-        scale,
+        Pose {
+            rotation,
+            scale,
+            ..*pose
+        }
     }
 }
 

@@ -493,6 +493,32 @@ pub fn score_poses(
 
 /// Registers `mesh` (local frame, mesh units) in `cloud`: finds the pose(s) of the
 /// object(s) the cloud contains (see the module documentation).
+///
+/// Finding the built-in asymmetric object under a random rotation and translation among
+/// 100 surface points and 100 uniform outliers:
+///
+/// ```
+/// use primfit_core::progress::Silent;
+/// use primfit_core::register::{RegisterOptions, register};
+/// use primfit_core::synth::{RegistrationParams, asymmetric_object, registration};
+///
+/// let mesh = asymmetric_object();
+/// let scene = registration(&mesh, &RegistrationParams {
+///     outliers: 100,
+///     translation: 0.2,
+///     ..Default::default()
+/// })?;
+/// let options = RegisterOptions {
+///     translation: true, // search the translation too (default: rotation only)
+///     count: Some(1),
+///     ..Default::default()
+/// };
+/// let found = register(&scene.cloud, &mesh, &options, &Silent)?;
+/// let (pose, truth) = (&found.objects[0].primitive.pose, &scene.truth[0].pose);
+/// assert!(pose.rotation.angle_to(&truth.rotation).to_degrees() < 3.0);
+/// assert!((pose.translation - truth.translation).norm() < 0.01 * found.model_size);
+/// # Ok::<(), primfit_core::Error>(())
+/// ```
 pub fn register(
     cloud: &PointCloud,
     mesh: &MeshShape,

@@ -269,17 +269,16 @@ impl Context<'_> {
             Some((a, b)) => (a.ln() + (b.ln() - a.ln()) * rng.random::<f64>()).exp(),
             None => 1.0,
         };
-        let translation = if o.translation {
+        if o.translation {
             let (lo, hi) = self.translation_prior(&rotation, scale);
             let c = lo + (hi - lo).map(|e| e * rng.random::<f64>());
-            c.coords - rotation * (self.centre.coords * scale)
+            Pose::anchored(rotation, scale, &self.centre, &c)
         } else {
-            o.fixed_translation
-        };
-        Pose {
-            rotation,
-            translation,
-            scale,
+            Pose {
+                rotation,
+                translation: o.fixed_translation,
+                scale,
+            }
         }
     }
 
@@ -328,17 +327,18 @@ impl Context<'_> {
             }
             None => pose.scale,
         };
-        let translation = if o.translation {
+        if o.translation {
+            // The centre stays where it was, then moves by Gaussian noise.
             let centre = pose.to_scene(&self.centre);
-            centre.coords - rotation * (self.centre.coords * scale)
-                + gaussian3(rng) * (spread * o.translation_spread)
+            let mut moved = Pose::anchored(rotation, scale, &self.centre, &centre);
+            moved.translation += gaussian3(rng) * (spread * o.translation_spread);
+            moved
         } else {
-            pose.translation
-        };
-        Pose {
-            rotation,
-            translation,
-            scale,
+            Pose {
+                rotation,
+                scale,
+                ..*pose
+            }
         }
     }
 

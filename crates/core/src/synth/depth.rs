@@ -15,7 +15,6 @@ use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
 use super::common::{gauss, non_negative, positive};
-use crate::ray::first_hit;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 
 /// Parameters of [`depth_sensor`]. Angles in radians, lengths in scene units (metres).
@@ -179,7 +178,7 @@ fn nearest(
     truth
         .iter()
         .enumerate()
-        .filter_map(|(k, p)| first_hit(p, o, d).map(|h| (k, h.depth, h.normal)))
+        .filter_map(|(k, p)| p.first_hit(o, d).map(|h| (k, h.depth, h.normal)))
         .filter(|h| h.1 <= max)
         .min_by(|a, b| a.1.total_cmp(&b.1))
 }

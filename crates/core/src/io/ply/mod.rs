@@ -86,6 +86,34 @@ impl PlyFile {
 /// Reads the `vertex` element of a PLY file as a point cloud. See the [module
 /// docs](crate::io) for the properties read; [`read_cloud_report`] also says what was
 /// skipped.
+///
+/// ```
+/// use primfit_core::io::read_cloud;
+///
+/// let dir = std::env::temp_dir().join(format!("primfit-doc-read-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir)?;
+/// let path = dir.join("two.ply");
+/// std::fs::write(&path, "ply
+/// format ascii 1.0
+/// element vertex 2
+/// property float x
+/// property float y
+/// property float z
+/// property uchar red
+/// property uchar green
+/// property uchar blue
+/// end_header
+/// 0 0 0 255 0 0
+/// 1 2 3 0 0 255
+/// ")?;
+/// let cloud = read_cloud(&path)?;
+/// assert_eq!(cloud.len(), 2);
+/// assert_eq!((cloud.points[1].x, cloud.points[1].z), (1.0, 3.0));
+/// assert_eq!(cloud.colors.as_deref(), Some(&[[255, 0, 0], [0, 0, 255]][..]));
+/// assert!(cloud.normals.is_none());
+/// std::fs::remove_dir_all(&dir)?;
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
 pub fn read_cloud(path: &Path) -> Result<PointCloud> {
     read_cloud_report(path).map(|(cloud, _)| cloud)
 }

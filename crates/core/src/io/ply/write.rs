@@ -53,6 +53,33 @@ pub fn write_cloud(path: &Path, cloud: &PointCloud, encoding: Encoding) -> Resul
 
 /// Writes `mesh` to `path` (atomically) as PLY `vertex` and `face` elements.
 ///
+/// Writing fitted primitives as one mesh, each face tagged with its primitive (what
+/// `primfit fit --mesh` writes), and reading it back:
+///
+/// ```
+/// use primfit_core::io::{Encoding, read_mesh, write_mesh};
+/// use primfit_core::na::{UnitQuaternion, Vector3};
+/// use primfit_core::{Pose, Primitive, Shape};
+///
+/// let prims = [
+///     Primitive::new(Shape::Square { side: 1.0 }, Pose::identity()),
+///     Primitive::new(
+///         Shape::Sphere { diameter: 0.5 },
+///         Pose::new(UnitQuaternion::identity(), Vector3::new(2.0, 0.0, 0.0)),
+///     ),
+/// ];
+/// let (mesh, owner) = primfit_core::fit::primitives_mesh(&prims); // owner: one per face
+/// let dir = std::env::temp_dir().join(format!("primfit-doc-mesh-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir)?;
+/// let path = dir.join("fitted.ply");
+/// write_mesh(&path, &mesh, Some(&owner), Encoding::BinaryLittleEndian)?;
+/// let back = read_mesh(&path)?;
+/// assert_eq!((back.vertices.len(), back.faces.len()), (mesh.vertices.len(), mesh.faces.len()));
+/// assert_eq!(back.vertices, mesh.vertices); // coordinates are written as doubles
+/// std::fs::remove_dir_all(&dir)?;
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+///
 /// `face_primitive` (one value per face) adds a per-face `int primitive` property, so
 /// that a viewer can colour by primitive, and also colours the vertices (`uchar red,
 /// green, blue`): each vertex takes [`palette_color`] of the primitive of the first face

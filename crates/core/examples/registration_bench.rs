@@ -16,13 +16,14 @@
 //! (scaled by the true scale); with `--scale` also the relative scale error.
 
 use std::path::PathBuf;
+use std::str::FromStr;
 use std::time::Instant;
 
-use primfit::atlas::MeshShape;
-use primfit::io;
-use primfit::progress::Silent;
-use primfit::register::{RegisterOptions, register};
-use primfit::synth::{RegistrationParams, asymmetric_object, registration};
+use primfit_core::atlas::MeshShape;
+use primfit_core::io;
+use primfit_core::progress::Silent;
+use primfit_core::register::{RegisterOptions, register};
+use primfit_core::synth::{RegistrationParams, asymmetric_object, registration};
 use serde_json::json;
 
 fn main() {
@@ -37,11 +38,11 @@ fn main() {
         .split(',')
         .map(|s| s.parse().expect("outlier level"))
         .collect();
-    let seeds: u64 = get("--seeds").map_or(20, |s| s.parse().expect("seed count"));
-    let first: u64 = get("--first-seed").map_or(0, |s| s.parse().expect("seed"));
-    let inliers: usize = get("--inliers").map_or(100, |s| s.parse().expect("inliers"));
+    let seeds: u64 = parsed_or(get("--seeds"), 20, "seed count");
+    let first: u64 = parsed_or(get("--first-seed"), 0, "seed");
+    let inliers: usize = parsed_or(get("--inliers"), 100, "inliers");
     let rotation_only = args.iter().any(|a| a == "--rotation-only");
-    let rel_t: f64 = get("--translation").map_or(0.25, |s| s.parse().expect("translation"));
+    let rel_t: f64 = parsed_or(get("--translation"), 0.25, "translation");
     let scenes = get("--scenes").map(PathBuf::from);
     let scale: Option<(f64, f64)> = get("--scale").map(|s| {
         let v: Vec<f64> = s.split(',').map(|x| x.parse().expect("scale")).collect();
@@ -53,7 +54,7 @@ fn main() {
         }
         None => asymmetric_object(),
     };
-    let (lo, hi) = primfit::cloud::bounds_of(&mesh.mesh.vertices).expect("vertices");
+    let (lo, hi) = primfit_core::cloud::bounds_of(&mesh.mesh.vertices).expect("vertices");
     let size = (hi - lo).norm();
     if let Some(dir) = &scenes {
         std::fs::create_dir_all(dir).expect("scene folder");
@@ -99,30 +100,22 @@ fn main() {
                 scale: scale.map(|_| (0.5, 2.0)),
                 count: Some(1),
                 seed,
-                initial_particles: get("--initial")
-                    .map_or(d.initial_particles, |s| s.parse().expect("count")),
-                particles: get("--particles").map_or(d.particles, |s| s.parse().expect("count")),
-                kernel_start: get("--kernel-start")
-                    .map_or(d.kernel_start, |s| s.parse().expect("fraction")),
-                kernel_shrink: get("--kernel-shrink")
-                    .map_or(d.kernel_shrink, |s| s.parse().expect("factor")),
-                kernel_end: get("--kernel-end")
-                    .map_or(d.kernel_end, |s| s.parse().expect("fraction")),
-                ess: get("--ess").map_or(d.ess, |s| s.parse().expect("share")),
-                local_moves: get("--local-moves")
-                    .map_or(d.local_moves, |s| s.parse().expect("count")),
-                translation_spread: get("--tspread")
-                    .map_or(d.translation_spread, |s| s.parse().expect("factor")),
+                initial_particles: parsed_or(get("--initial"), d.initial_particles, "count"),
+                particles: parsed_or(get("--particles"), d.particles, "count"),
+                kernel_start: parsed_or(get("--kernel-start"), d.kernel_start, "fraction"),
+                kernel_shrink: parsed_or(get("--kernel-shrink"), d.kernel_shrink, "factor"),
+                kernel_end: parsed_or(get("--kernel-end"), d.kernel_end, "fraction"),
+                ess: parsed_or(get("--ess"), d.ess, "share"),
+                local_moves: parsed_or(get("--local-moves"), d.local_moves, "count"),
+                translation_spread: parsed_or(get("--tspread"), d.translation_spread, "factor"),
                 screen: get("--screen").map(|s| s.parse().expect("count")),
-                vote_peaks: get("--vote-peaks").map_or(d.vote_peaks, |s| s.parse().expect("count")),
-                basin_share: get("--basin-share")
-                    .map_or(d.basin_share, |s| s.parse().expect("share")),
-                flip_moves: get("--flip-moves").map_or(d.flip_moves, |s| s.parse().expect("count")),
-                vote_keep: get("--vote-keep").map_or(d.vote_keep, |s| s.parse().expect("count")),
-                vote_bin: get("--vote-bin").map_or(d.vote_bin, |s| s.parse().expect("fraction")),
-                vote_spacing: get("--vote-spacing")
-                    .map_or(d.vote_spacing, |s| s.parse().expect("fraction")),
-                max_rounds: get("--max-rounds").map_or(d.max_rounds, |s| s.parse().expect("count")),
+                vote_peaks: parsed_or(get("--vote-peaks"), d.vote_peaks, "count"),
+                basin_share: parsed_or(get("--basin-share"), d.basin_share, "share"),
+                flip_moves: parsed_or(get("--flip-moves"), d.flip_moves, "count"),
+                vote_keep: parsed_or(get("--vote-keep"), d.vote_keep, "count"),
+                vote_bin: parsed_or(get("--vote-bin"), d.vote_bin, "fraction"),
+                vote_spacing: parsed_or(get("--vote-spacing"), d.vote_spacing, "fraction"),
+                max_rounds: parsed_or(get("--max-rounds"), d.max_rounds, "count"),
                 ..d
             };
             let (t0, c0) = (Instant::now(), cpu_seconds());
@@ -163,4 +156,13 @@ fn cpu_seconds() -> Option<f64> {
     let ticks: f64 = fields.get(11)?.parse::<f64>().ok()? + fields.get(12)?.parse::<f64>().ok()?;
     // USER_HZ is 100 on every Linux platform Rust supports.
     Some(ticks / 100.0)
+}
+
+/// `value` parsed, or `default` when the flag was not given; panics naming `what` when the
+/// value does not parse.
+fn parsed_or<T: FromStr>(value: Option<String>, default: T, what: &str) -> T
+where
+    T::Err: std::fmt::Debug,
+{
+    value.map_or(default, |s| s.parse().expect(what))
 }

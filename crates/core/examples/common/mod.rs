@@ -4,12 +4,15 @@
 
 use std::time::Instant;
 
-use primfit::ShapeKind;
-use primfit::fit::{FitOptions, fit};
-use primfit::metrics::{MetricsOptions, evaluate};
-use primfit::progress::Silent;
-use primfit::refine::RefineOptions;
-use primfit::synth::{Density, Misalignment, Noise, PipeParams, Scene, pipe};
+use primfit_core::ShapeKind;
+use primfit_core::fit::{FitOptions, fit};
+use primfit_core::metrics::{MetricsOptions, evaluate};
+use primfit_core::progress::Silent;
+use primfit_core::refine::RefineOptions;
+use primfit_core::synth::{Density, Misalignment, Noise, PipeParams, Scene, pipe};
+
+/// The seed of trial 0; trial `k` is the pipe of seed `FIRST_SEED + k`.
+pub const FIRST_SEED: u64 = 1000;
 
 /// Error and time of one fit.
 #[derive(Debug, Clone, Copy)]
@@ -58,7 +61,7 @@ pub fn pipe_options(spacing: f64) -> FitOptions {
 }
 
 /// The DESIGN §4 measures of `prims` against `scene`'s cloud, with `seconds`.
-pub fn measure(scene: &Scene, prims: &[primfit::Primitive], seconds: f64) -> Outcome {
+pub fn measure(scene: &Scene, prims: &[primfit_core::Primitive], seconds: f64) -> Outcome {
     let m =
         evaluate(&scene.cloud.points, prims, None, &MetricsOptions::default()).expect("metrics");
     Outcome {
@@ -82,6 +85,23 @@ pub fn fit_both(scene: &Scene, options: &FitOptions) -> (Outcome, Outcome) {
         ..options.clone()
     };
     (run(options), run(&refined))
+}
+
+/// The measures of the true primitives of trials `0..n` (no time).
+pub fn truth_outcomes(n: u64) -> Vec<Outcome> {
+    (0..n)
+        .map(|k| {
+            let scene = pipe_scene(FIRST_SEED + k);
+            measure(&scene, &scene.truth, 0.0)
+        })
+        .collect()
+}
+
+/// [`fit_both`] on trials `0..n`: the plain outcomes and the refined ones, in trial order.
+pub fn fit_trials(n: u64, options: &FitOptions) -> (Vec<Outcome>, Vec<Outcome>) {
+    (0..n)
+        .map(|k| fit_both(&pipe_scene(FIRST_SEED + k), options))
+        .unzip()
 }
 
 /// `mean ± std` of `values` (population standard deviation), `precision` decimals.

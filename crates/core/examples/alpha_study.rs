@@ -8,29 +8,18 @@
 
 mod common;
 
-use common::{fit_both, header, measure, pipe_options, pipe_scene, row, trials, truth_row};
-use primfit::chamfer::PointModel;
+use common::{fit_trials, header, pipe_options, row, trials, truth_outcomes, truth_row};
+use primfit_core::chamfer::PointModel;
 
 fn main() {
     let n = trials();
     println!("{}", header("α"));
-    let truth: Vec<_> = (0..n)
-        .map(|seed| {
-            let scene = pipe_scene(1000 + seed);
-            measure(&scene, &scene.truth, 0.0)
-        })
-        .collect();
+    let truth = truth_outcomes(n);
     for alpha in [1usize, 2, 5, 10, 20] {
         let mut options = pipe_options(0.5);
         options.model = PointModel::Independent;
         options.alpha = Some(alpha);
-        let (mut plain, mut refined) = (Vec::new(), Vec::new());
-        for seed in 0..n {
-            let scene = pipe_scene(1000 + seed);
-            let (p, r) = fit_both(&scene, &options);
-            plain.push(p);
-            refined.push(r);
-        }
+        let (plain, refined) = fit_trials(n, &options);
         println!("{}", row(&alpha.to_string(), &plain, &refined));
     }
     println!("{}", truth_row(&truth));

@@ -2,7 +2,7 @@
 //! single- and double-candidate scene, planar and cylindrical, written as CSV:
 //! `six_squares.csv` and `six_cylinders.csv`, each a 6×6 matrix (row i, column k: the
 //! scene {candidate i, candidate k}; the diagonal: {candidate i} alone), candidates at
-//! 7..12 m, points sampled on the one at 10 m. Render with `ray_toy_heatmap.py`.
+//! 7..12 m, points sampled on the one at 10 m. Render with `examples/ray_toy_heatmap.py`.
 //!
 //! ```text
 //! cargo run --release --example ray_toy_heatmap -- OUT_DIR
@@ -11,10 +11,10 @@
 use std::io::Write;
 use std::path::PathBuf;
 
-use primfit::ray::{RayModel, RayTable, Rays};
-use primfit::synth::{SixInARowParams, SixVariant, six_in_a_row};
+use primfit_core::ray::{RayModel, RayTable, Rays};
+use primfit_core::synth::{SixInARowParams, SixVariant, six_in_a_row};
 
-fn matrix(variant: SixVariant) -> primfit::Result<(Vec<f64>, [[f64; 6]; 6])> {
+fn matrix(variant: SixVariant) -> primfit_core::Result<(Vec<f64>, [[f64; 6]; 6])> {
     let toy = six_in_a_row(&SixInARowParams {
         variant,
         ..Default::default()

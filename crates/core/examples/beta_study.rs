@@ -3,10 +3,10 @@
 //! β = 32 documented in `primfit_core::fit`.
 //!
 //!     cargo run --release --example beta_study
-use primfit::ShapeKind;
-use primfit::fit::{FitOptions, binary_chamfer, fit};
-use primfit::progress::Silent;
-use primfit::synth::{Density, HallwayParams, PipeParams, Scene, hallway, pipe};
+use primfit_core::ShapeKind;
+use primfit_core::fit::{FitOptions, binary_chamfer, fit};
+use primfit_core::progress::Silent;
+use primfit_core::synth::{Density, HallwayParams, PipeParams, Scene, hallway, pipe};
 
 /// Fit chamfer ÷ truth chamfer (≤ 1 means as good as the truth or better).
 fn ratio(scene: &Scene, options: &FitOptions) -> f64 {

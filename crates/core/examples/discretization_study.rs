@@ -8,28 +8,17 @@
 
 mod common;
 
-use common::{fit_both, header, measure, pipe_options, pipe_scene, row, trials, truth_row};
+use common::{fit_trials, header, pipe_options, row, trials, truth_outcomes, truth_row};
 
 fn main() {
     let n = trials();
     let base = 0.5;
     println!("{}", header("level i (spacing)"));
-    let truth: Vec<_> = (0..n)
-        .map(|seed| {
-            let scene = pipe_scene(1000 + seed);
-            measure(&scene, &scene.truth, 0.0)
-        })
-        .collect();
+    let truth = truth_outcomes(n);
     for i in -2i32..=2 {
         let spacing = base * 2f64.powi(i);
         let options = pipe_options(spacing);
-        let (mut plain, mut refined) = (Vec::new(), Vec::new());
-        for seed in 0..n {
-            let scene = pipe_scene(1000 + seed);
-            let (p, r) = fit_both(&scene, &options);
-            plain.push(p);
-            refined.push(r);
-        }
+        let (plain, refined) = fit_trials(n, &options);
         println!("{}", row(&format!("{i} ({spacing})"), &plain, &refined));
     }
     println!("{}", truth_row(&truth));

@@ -31,10 +31,10 @@ use std::sync::Mutex;
 use std::time::Instant;
 
 use common::BenchScene;
-use primfit::Error;
-use primfit::fit::{FitResult, fit};
-use primfit::metrics::{MetricsOptions, evaluate};
-use primfit::progress::Progress;
+use primfit_core::Error;
+use primfit_core::fit::{FitResult, fit};
+use primfit_core::metrics::{MetricsOptions, evaluate};
+use primfit_core::progress::Progress;
 use serde_json::{Value, json};
 
 /// Scenes of the default table: the 20k pipe, the 100k and 1M hallways (both point
@@ -246,7 +246,7 @@ fn export(scene: BenchScene, dir: &Path) -> std::io::Result<()> {
     let (settings, candidates) = scene.prepare(&cloud);
     let p = |name: &str| dir.join(name);
     let coords =
-        |pts: &[primfit::na::Point3<f64>]| f64_bytes(pts.iter().flat_map(|q| [q.x, q.y, q.z]));
+        |pts: &[primfit_core::na::Point3<f64>]| f64_bytes(pts.iter().flat_map(|q| [q.x, q.y, q.z]));
     write_npy(
         &p("cloud.npy"),
         "<f8",
@@ -361,7 +361,7 @@ fn numpy(scene: BenchScene, python: &str, timeout: u64, work: &Path) -> Value {
     if e.get("error").is_some() {
         return e;
     }
-    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("benches/numpy_reference.py");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../benches/numpy_reference.py");
     let out = Command::new("timeout")
         .arg(timeout.to_string())
         .arg(python)

@@ -1,8 +1,9 @@
 //! Criterion benches of the loss (issue 4): coefficient building and one loss + gradient
 //! evaluation, for both point models, at 20k (pipe), 100k and 1M (hallway) points.
 //!
-//! `cargo bench --bench chamfer` (a few minutes; 1M groups take 10 short samples).
-//! Filter with criterion's usual `cargo bench --bench chamfer -- evaluate/existence`.
+//! `cargo bench -p primfit-core --bench chamfer` (a few minutes; 1M groups take 10 short
+//! samples). Filter with criterion's usual
+//! `cargo bench -p primfit-core --bench chamfer -- evaluate/existence`.
 
 mod common;
 
@@ -11,8 +12,8 @@ use std::time::Duration;
 use common::{BenchScene, Kind};
 use criterion::measurement::WallTime;
 use criterion::{BenchmarkGroup, BenchmarkId, Criterion, criterion_group, criterion_main};
-use primfit::chamfer::{Coefficients, Evaluator, PointModel};
-use primfit::progress::Silent;
+use primfit_core::chamfer::{Coefficients, Evaluator, PointModel};
+use primfit_core::progress::Silent;
 
 /// The benchmark scenes at each size: a pipe at 20k, the hallway at 100k and 1M.
 pub fn scenes(model: PointModel) -> Vec<BenchScene> {

@@ -1,18 +1,18 @@
-//! Scenes shared by the criterion benches (`benches/*.rs`) and the benchmark table
-//! (`examples/bench_table.rs`, which includes this file with `#[path]`).
+//! Scenes shared by the criterion benches (`crates/core/benches/*.rs`) and the benchmark
+//! table (`crates/core/examples/bench_table.rs`, which includes this file with `#[path]`).
 //!
 //! Every scene is deterministic (seeded) and has an exact point count
 //! ([`Density::Total`]); its fit options are the fitter's defaults plus the lattice the
 //! scene lives on.
 #![allow(dead_code)] // each bench target uses a different subset
 
-use primfit::chamfer::{Coefficients, PointModel};
-use primfit::fit::{FitOptions, Settings};
-use primfit::lattice::CandidateSet;
-use primfit::progress::Silent;
-use primfit::spatial::PointIndex;
-use primfit::synth::{Density, HallwayParams, PipeParams, hallway, pipe};
-use primfit::{PointCloud, ShapeKind};
+use primfit_core::chamfer::{Coefficients, PointModel};
+use primfit_core::fit::{FitOptions, Settings};
+use primfit_core::lattice::CandidateSet;
+use primfit_core::progress::Silent;
+use primfit_core::spatial::PointIndex;
+use primfit_core::synth::{Density, HallwayParams, PipeParams, hallway, pipe};
+use primfit_core::{PointCloud, ShapeKind};
 
 /// Which synthetic scene.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -131,7 +131,7 @@ impl BenchScene {
         }
     }
 
-    /// Resolved settings and the candidate set, as [`primfit::fit::fit`] builds them (before
+    /// Resolved settings and the candidate set, as [`primfit_core::fit::fit`] builds them (before
     /// the exact dominance reduction of `Coefficients::build_reduced`).
     pub fn prepare(&self, cloud: &PointCloud) -> (Settings, CandidateSet) {
         let index = PointIndex::new(&cloud.points);

@@ -1,7 +1,7 @@
 //! Criterion bench of a whole fit (lattice, coefficients, L-BFGS, threshold, polish) for
 //! both point models at 20k (pipe), 100k and 1M (hallway) points.
 //!
-//! `cargo bench --bench fit`. The 1M independent fit is left out unless
+//! `cargo bench -p primfit-core --bench fit`. The 1M independent fit is left out unless
 //! `PRIMFIT_BENCH_LARGE=1` (it builds 320 M entries per iteration).
 
 mod common;
@@ -10,9 +10,9 @@ use std::time::Duration;
 
 use common::{BenchScene, Kind};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
-use primfit::chamfer::PointModel;
-use primfit::fit::fit;
-use primfit::progress::Silent;
+use primfit_core::chamfer::PointModel;
+use primfit_core::fit::fit;
+use primfit_core::progress::Silent;
 
 fn whole_fit(c: &mut Criterion) {
     for model in [PointModel::Existence, PointModel::Independent] {

@@ -12,8 +12,8 @@
 //!
 //! Thesis (Intel Core i7): 50 ms from scratch, 2 ms incremental, per step.
 //!
-//! Measured (`cargo bench --bench ray`, 2 shared cores of an Intel Xeon, 20 266 rays,
-//! 4 frames, 500 candidates, 137 712 crossings = 6.8 per ray, 24 B each):
+//! Measured (`cargo bench -p primfit-core --bench ray`, 2 shared cores of an Intel Xeon,
+//! 20 266 rays, 4 frames, 500 candidates, 137 712 crossings = 6.8 per ray, 24 B each):
 //!
 //! | bench | time |
 //! |---|---|
@@ -24,15 +24,15 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
-use primfit::lattice::{CandidateSet, LatticeSpec};
-use primfit::na::{Point3, UnitQuaternion};
-use primfit::progress::Silent;
-use primfit::ray::{
+use primfit_core::lattice::{CandidateSet, LatticeSpec};
+use primfit_core::na::{Point3, UnitQuaternion};
+use primfit_core::progress::Silent;
+use primfit_core::ray::{
     McmcOptions, PriorOptions, RayModel, RayTable, Rays, SceneState, existence_prior, flip_rates,
     sample,
 };
-use primfit::synth::{HallwayParams, SensorParams, depth_sensor, hallway, walk_poses};
-use primfit::{Primitive, Shape};
+use primfit_core::synth::{HallwayParams, SensorParams, depth_sensor, hallway, walk_poses};
+use primfit_core::{Primitive, Shape};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 

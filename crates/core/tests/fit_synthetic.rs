@@ -3,13 +3,13 @@
 //! "As good as the truth" is measured on the fitter's own terms: the exact binary chamfer
 //! of the fitted set against the true set's, and the DESIGN §4 measures of both.
 
-use primfit::fit::{FitOptions, FitResult, binary_chamfer, fit};
-use primfit::metrics::{Metrics, MetricsOptions, evaluate};
-use primfit::progress::Silent;
-use primfit::synth::{
+use primfit_core::fit::{FitOptions, FitResult, binary_chamfer, fit};
+use primfit_core::metrics::{Metrics, MetricsOptions, evaluate};
+use primfit_core::progress::Silent;
+use primfit_core::synth::{
     HallwayParams, NineCylinderParams, PipeParams, Scene, hallway, nine_cylinders, pipe,
 };
-use primfit::{Shape, ShapeKind};
+use primfit_core::{Shape, ShapeKind};
 
 /// Fit options matching the lattice the scene's truth lives on.
 fn options_for(scene: &Scene) -> FitOptions {
@@ -37,7 +37,7 @@ fn options_for(scene: &Scene) -> FitOptions {
     o
 }
 
-fn measures(scene: &Scene, model: &[primfit::Primitive]) -> Metrics {
+fn measures(scene: &Scene, model: &[primfit_core::Primitive]) -> Metrics {
     evaluate(
         &scene.cloud.points,
         model,
@@ -125,7 +125,7 @@ fn hallways_are_tiled_as_well_as_the_truth() {
             seed,
             ceiling,
             length: 6.0,
-            density: primfit::synth::Density::PerArea(400.0),
+            density: primfit_core::synth::Density::PerArea(400.0),
             ..Default::default()
         };
         let scene = hallway(&p).unwrap();
@@ -158,7 +158,7 @@ fn misaligned_scenes_stay_within_a_quarter_step() {
     for seed in 0..6 {
         let p = PipeParams {
             seed,
-            misalignment: primfit::synth::Misalignment {
+            misalignment: primfit_core::synth::Misalignment {
                 offset: 0.5,
                 angle: 0.0,
             },

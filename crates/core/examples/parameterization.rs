@@ -3,11 +3,11 @@
 //! `primfit_core::solve`.
 //!
 //!     cargo run --release --example parameterization
-use primfit::ShapeKind;
-use primfit::fit::{FitOptions, fit};
-use primfit::progress::Silent;
-use primfit::solve::{Parameterization, SolverOptions};
-use primfit::synth::{Density, HallwayParams, PipeParams, hallway, pipe};
+use primfit_core::ShapeKind;
+use primfit_core::fit::{FitOptions, fit};
+use primfit_core::progress::Silent;
+use primfit_core::solve::{Parameterization, SolverOptions};
+use primfit_core::synth::{Density, HallwayParams, PipeParams, hallway, pipe};
 
 fn main() {
     println!(
