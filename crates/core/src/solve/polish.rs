@@ -16,7 +16,7 @@ use crate::chamfer::Coefficients;
 /// 3. **replace chains**: remove a candidate, add the neighbour (a candidate with entries
 ///    in the same rows) that lowers the loss most, prune as in 2; if that alone does not
 ///    pay, continue with an existing candidate overlapping the new one (an ejection chain
-///    of depth [`CHAIN_DEPTH`]). Kept only if the whole chain strictly lowers the loss.
+///    of depth `CHAIN_DEPTH` = 2). Kept only if the whole chain strictly lowers the loss.
 ///    This shifts a row of tiles by a lattice step, e.g. five half-overlapping tiles
 ///    into four abutting ones.
 ///
