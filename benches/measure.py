@@ -153,12 +153,21 @@ def sample_spacing_for(model, spacing, max_samples=MAX_SAMPLES):
     return max(spacing, float(np.sqrt(area / max_samples)))
 
 
-def overlap_flags(model, samples, sample_face, h):
+PRUNE_SAMPLE_SPACINGS = 3.0
+"""Overlap test: a sample whose nearest sample of the other primitive is farther than
+h + this × the sample spacing is taken as farther than h from that surface without the
+exact test (wrong only if a disk of this radius on the surface holds no sample:
+probability e^(-π·3²) ≈ 5e-13 for area-uniform samples)."""
+
+
+def overlap_flags(model, samples, sample_face, h, sample_spacing):
     """For each sample: lies it within h of the surface of another primitive?
 
-    Only pairs of primitives whose bounding boxes, grown by h, meet are compared,
-    and only the samples inside the other's grown box are queried.
+    Only pairs of primitives whose bounding boxes, grown by h, meet are compared, only
+    the samples inside the other's grown box are queried, and only those near one of
+    its samples (``PRUNE_SAMPLE_SPACINGS``) get the exact distance.
     """
+    reach = h + PRUNE_SAMPLE_SPACINGS * sample_spacing
     owner = model.face_primitive[sample_face]
     ids = np.unique(model.face_primitive)
     meshes, boxes = {}, {}
@@ -180,8 +189,11 @@ def overlap_flags(model, samples, sample_face, h):
             inside = np.all((mesh_p.samples >= lo) & (mesh_p.samples <= hi), axis=1)
             inside &= ~flags[rows]  # already counted
             if inside.any():
-                close = distance_to_mesh(mesh_p.samples[inside], meshes[q][1]) <= h
-                flags[rows[inside]] |= close
+                mesh_q = meshes[q][1]
+                near, _ = mesh_q.tree.query(mesh_p.samples[inside], distance_upper_bound=reach)
+                inside[inside] = np.isfinite(near)
+            if inside.any():
+                flags[rows[inside]] |= distance_to_mesh(mesh_p.samples[inside], mesh_q) <= h
     return flags
 
 
@@ -219,7 +231,7 @@ def measure(scan, model, coverage_distance=0.05, spacing=None):
     whole = SampledMesh.of(model.vertices, model.faces, samples, sample_face)
     to_model = distance_to_mesh(scan, whole)
     to_scan, _ = cKDTree(scan).query(samples)
-    overlap = overlap_flags(model, samples, sample_face, h)
+    overlap = overlap_flags(model, samples, sample_face, h, delta)
     return result | {
         "sample_spacing": delta,
         "samples": int(len(samples)),

@@ -25,8 +25,11 @@ Methods, each run once per scan and timed by wall clock (``time s``):
 triangle mesh with a primitive id per face. primfit's is its ``--mesh`` PLY (per-face
 ``primitive``); a baseline plane becomes the cells of side 3 s of its plane that hold
 its inliers, a baseline cylinder a tube over its inliers' extent along the axis
-(``--cylinder-mesh cells``: only the cells of the unrolled surface that hold inliers;
-benches/primitive_mesh.py). Each mesh is sampled area-uniformly at spacing s and
+(benches/primitive_mesh.py). A tube is the model CGAL states, but a spurious cylinder
+of large radius fitted to a patch of wall then adds a large tube that no point is near;
+so by default (``--cylinder-mesh both``) CGAL gets a second row from the same detection,
+its cylinders meshed like its planes: the cells of the unrolled surface (arc length ×
+axial position) that hold inliers. Each mesh is sampled area-uniformly at spacing s and
 measured against the scan: point→model mean (exact distance to the nearest face),
 model→point mean (over model area), coverage@5 cm (share of scan points within 5 cm of
 the model), overlap share (share of model area within h = 2 s of another primitive's
@@ -154,8 +157,8 @@ def shape_mesh(shape, inliers, cell, cylinder_mesh):
     return cylinder_tube(inliers, centre, axis, r, tube_segments(r, cell))
 
 
-def run_cgal(points, derived, out_dir, cylinder_mesh):
-    """CGAL Efficient RANSAC, planes + cylinders, on Open3D normals."""
+def cgal_detect(points, derived, out_dir):
+    """CGAL Efficient RANSAC, planes + cylinders, on Open3D normals: (shapes, points, labels, timings)."""
     import open3d  # noqa: F401  (imported outside the timing)
     from CGAL.CGAL_Point_set_3 import Point_set_3
     from CGAL.CGAL_Shape_detection import efficient_RANSAC
@@ -175,16 +178,24 @@ def run_cgal(points, derived, out_dir, cylinder_mesh):
     t3 = time.perf_counter()
     point_set.write(handoff_out)  # detection reorders the points: read them back with their labels
     labelled = PlyData.read(handoff_out)["vertex"]
-    handoff_s = (t2 - t1) + (time.perf_counter() - t3)
+    timings = {"normals_s": t1 - t0, "detection_s": t3 - t2, "handoff_s": (t2 - t1) + (time.perf_counter() - t3)}
     os.remove(handoff_in)
     os.remove(handoff_out)
     xyz = np.column_stack([labelled["x"], labelled["y"], labelled["z"]])
-    label = np.asarray(labelled["shape_index"])
-    parsed = [parse_cgal_shape(s) for s in shapes]
-    parts = [(*shape_mesh(p, xyz[label == k], derived.cell, cylinder_mesh), p["type"]) for k, p in enumerate(parsed)]
-    return Run("CGAL Efficient RANSAC", merge(parts), (t1 - t0) + (t3 - t2),
-               {"normals_s": t1 - t0, "detection_s": t3 - t2, "handoff_s": handoff_s,
-                "unassigned_share": float(np.mean(label < 0)), "shapes": parsed})
+    return [parse_cgal_shape(s) for s in shapes], xyz, np.asarray(labelled["shape_index"]), timings
+
+
+def run_cgal(points, derived, out_dir, cylinder_meshes):
+    """One detection, one Run per way of meshing its cylinders ("tube", "cells")."""
+    shapes, xyz, label, timings = cgal_detect(points, derived, out_dir)
+    details = timings | {"unassigned_share": float(np.mean(label < 0)), "shapes": shapes}
+    seconds = timings["normals_s"] + timings["detection_s"]
+    runs = []
+    for meshing in cylinder_meshes:
+        parts = [(*shape_mesh(p, xyz[label == k], derived.cell, meshing), p["type"]) for k, p in enumerate(shapes)]
+        name = "CGAL Efficient RANSAC" + (", cylinders as inlier cells" if meshing == "cells" else "")
+        runs.append(Run(name, merge(parts), seconds, details | {"cylinder_mesh": meshing}))
+    return runs
 
 
 def open3d_plane_loop(points, threshold, max_planes=20):
@@ -234,7 +245,8 @@ def compare_scan(scan, args):
     os.makedirs(out_dir, exist_ok=True)
     points = read_points(scan)
     derived = Derived.of(points, median_spacing(points), args)
-    runs = [run_primfit(args.primfit, scan, out_dir), run_cgal(points, derived, out_dir, args.cylinder_mesh)]
+    cylinder_meshes = ["tube", "cells"] if args.cylinder_mesh == "both" else [args.cylinder_mesh]
+    runs = [run_primfit(args.primfit, scan, out_dir), *run_cgal(points, derived, out_dir, cylinder_meshes)]
     runs += [run_open3d(points, t, derived.cell) for t in [derived.epsilon, *args.o3d_threshold]]
     measured = []
     for run in runs:
@@ -269,6 +281,18 @@ def print_table(scans, coverage_distance):
                   f"{run.seconds:.2f} |")
 
 
+def print_parameters(scans):
+    print("| scan | points | median spacing s | CGAL epsilon = Open3D T | cluster epsilon | min points | "
+          "normal threshold | plane cell | CGAL normals s | CGAL detection s |")
+    print("|---|---:|---:|---:|---:|---:|---:|---:|---:|---:|")
+    for scene in scans:
+        d = scene["derived"]
+        cgal = next(r.details for r, _ in scene["runs"] if r.method.startswith("CGAL"))
+        print(f"| {os.path.basename(scene['scan'])} | {scene['points']} | {d['spacing']:.4g} | {d['epsilon']:.4g} | "
+              f"{d['cluster_epsilon']:.4g} | {d['min_points']} | {d['normal_threshold']:g} | {d['cell']:.4g} | "
+              f"{cgal['normals_s']:.2f} | {cgal['detection_s']:.2f} |")
+
+
 def write_results(path, before, after, scans):
     rows = [{"scan": s["scan"], "points": s["points"], "derived": s["derived"],
              "runs": [{"method": r.method, "seconds": r.seconds, "details": r.details, "measures": m}
@@ -292,9 +316,9 @@ def parse_args():
     ap.add_argument("--min-points-share", type=float, default=0.002, help="CGAL min points, share of the scan")
     ap.add_argument("--min-points-floor", type=int, default=30, help="CGAL min points, at least")
     ap.add_argument("--normal-threshold", type=float, default=0.9, help="CGAL normal threshold (cosine)")
-    ap.add_argument("--cylinder-mesh", choices=["tube", "cells"], default="tube",
-                    help="baseline cylinder as a whole tube over the inliers' axial extent, or as the "
-                         "cells of the unrolled surface that hold inliers [default: tube]")
+    ap.add_argument("--cylinder-mesh", choices=["tube", "cells", "both"], default="both",
+                    help="CGAL cylinders as whole tubes over the inliers' axial extent, as the cells of the "
+                         "unrolled surface that hold inliers, or both (one row each) [default: both]")
     ap.add_argument("--o3d-threshold", type=float, nargs="*", default=[],
                     help="extra Open3D rows with these fixed inlier distances")
     args = ap.parse_args()
@@ -314,6 +338,8 @@ def main():
     after = machine()
     print(f"load average after {after['load_average']}\n")
     print_table(results, args.coverage_distance)
+    print()
+    print_parameters(results)
     write_results(os.path.join(args.out, "results.json"), before, after, results)
     print(f"\nresults and meshes under {args.out}")
 
