@@ -82,6 +82,22 @@ class Measures(unittest.TestCase):
         self.assertAlmostEqual(m["overlap_share"], 0.04, delta=0.005)  # h = 0.04 of each unit square
 
 
+class FarSamples(unittest.TestCase):
+    def test_far_mean_matches_exact(self):
+        """Model→point of samples far from the points: the subset estimate is close to the exact mean."""
+        import measure as m
+        from scipy.spatial import cKDTree
+
+        rng = np.random.default_rng(2)
+        points = rng.uniform(0, 1, (2000, 3))
+        samples = np.vstack([rng.uniform(0, 1, (1000, 3)), rng.uniform(3, 9, (50_000, 3))])
+        tree = cKDTree(points)
+        exact = tree.query(samples)[0].mean()
+        estimate, bounded = m.mean_distance_to_points(samples, tree, reach=0.5)
+        self.assertAlmostEqual(estimate, exact, delta=0.01 * exact)
+        self.assertEqual(int(np.isfinite(bounded).sum()), 1000)
+
+
 class BaselineMeshes(unittest.TestCase):
     def test_plane_cells_cover_inliers(self):
         pts = grid_points(n=40)
