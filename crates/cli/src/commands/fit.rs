@@ -6,11 +6,10 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::chamfer::PointModel;
-use primfit_core::fit::{FitOptions, fit};
+use primfit_core::fit::{FitOptions, McmcFitOptions, fit, fit_mcmc};
 use primfit_core::frame::FrameChoice;
 use primfit_core::io::{self, Encoding};
 use primfit_core::na::Point3;
-use primfit_core::ray::{McmcFitOptions, fit_mcmc};
 use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
 

@@ -7,7 +7,8 @@
 //! with per-frame [`RayTree`]s and stored, with their per-crossing terms, in a
 //! [`RayTable`] (Algorithm 2); [`SceneState`] re-evaluates only the rays of flipped
 //! candidates (Algorithm 3); [`sample`] is the §4.2.2 sampler with the §4.2.1 prior
-//! ([`existence_prior`]); [`fit_mcmc`] is the pipeline behind `primfit fit --method mcmc`.
+//! ([`existence_prior`]); [`crate::fit::fit_mcmc`] is the pipeline behind `primfit fit
+//! --method mcmc`.
 //!
 //! Units: lengths in scene units (metres), log-likelihoods in nats, the noise rate in
 //! points per scene unit of ray.
@@ -26,16 +27,14 @@
 //! assert!(truth > nearest);
 //! ```
 
-mod fit;
 pub mod incremental;
 pub mod likelihood;
 pub mod mcmc;
 pub mod prior;
 pub mod raytree;
 #[cfg(test)]
-mod tests;
+pub(crate) mod tests;
 
-pub use fit::{McmcFitOptions, fit_mcmc};
 pub use incremental::SceneState;
 pub use likelihood::{RayModel, crossing_terms, log_upper_tail, ray_log_likelihood};
 pub use mcmc::{McmcOptions, McmcResult, flip_rates, sample};

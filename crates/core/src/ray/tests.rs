@@ -6,7 +6,6 @@ use rand_chacha::ChaCha8Rng;
 
 use super::*;
 use crate::atlas::Shape;
-use crate::fit::FitOptions;
 use crate::lattice::{CandidateSet, LatticeSpec};
 use crate::progress::Silent;
 use crate::synth::{
@@ -150,7 +149,7 @@ fn misaligned_plane_reproduces_table_4_1() {
 }
 
 /// A small room scanned from a few poses, and a lattice of 1 m squares around it.
-fn room() -> (PointCloud, Vec<Primitive>, Vec<Primitive>) {
+pub(crate) fn room() -> (PointCloud, Vec<Primitive>, Vec<Primitive>) {
     let sq = |axis: usize, side: f64, at: [f64; 3]| {
         Primitive::new(
             Shape::Square { side },
@@ -375,48 +374,6 @@ fn flip_rates_decay_with_age_and_sum_to_the_expected_flips() {
             .iter()
             .any(|r| *r < rates.iter().copied().fold(0.0, f64::max))
     );
-}
-
-#[test]
-fn fit_mcmc_recovers_a_scanned_room_on_the_lattice() {
-    let (cloud, truth, _) = room();
-    let options = FitOptions {
-        size: Some(1.0),
-        spacing: Some(0.5),
-        seed: 1,
-        ..Default::default()
-    };
-    let mcmc = McmcFitOptions {
-        sigma: Some(0.02),
-        ..Default::default()
-    };
-    let result = fit_mcmc(&cloud, &options, &mcmc, &Silent).unwrap();
-    assert!(!result.primitives.is_empty());
-    for p in &result.primitives {
-        let c = p.center();
-        let on_truth = truth.iter().any(|t| t.distance(&c) < 1e-9);
-        assert!(on_truth, "stray square at {c:?}");
-    }
-    let covered = cloud
-        .points
-        .iter()
-        .filter(|y| result.primitives.iter().any(|p| p.distance(y) < 0.05))
-        .count();
-    assert!(
-        covered as f64 > 0.9 * cloud.len() as f64,
-        "{covered} / {}",
-        cloud.len()
-    );
-    let json = result.to_json(serde_json::json!({}));
-    assert_eq!(json["settings"]["method"], "mcmc");
-    assert!(json["settings"].get("beta").is_none());
-    assert!(json["settings"]["mcmc"]["accepted"].as_u64().unwrap() > 0);
-    // Without sensor origins it says so.
-    let bare = PointCloud::from_points(cloud.points.clone());
-    let err = fit_mcmc(&bare, &options, &mcmc, &Silent)
-        .unwrap_err()
-        .to_string();
-    assert!(err.contains("sensor"), "{err}");
 }
 
 #[test]

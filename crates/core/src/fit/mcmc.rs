@@ -20,14 +20,14 @@ use std::time::Instant;
 
 use serde_json::{Value, json};
 
-use super::likelihood::RayModel;
-use super::mcmc::{McmcOptions, flip_rates, sample};
-use super::prior::{PriorOptions, existence_prior};
-use super::raytree::{Entry, RayTable, Rays};
+use super::{FitOptions, FitResult, FitStats, Method, Settings};
 use crate::chamfer::LossValue;
-use crate::fit::{FitOptions, FitResult, FitStats, Method, Settings};
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
+use crate::ray::{
+    Entry, McmcOptions, McmcResult, PriorOptions, RayModel, RayTable, Rays, existence_prior,
+    flip_rates, sample,
+};
 use crate::solve::{Solution, StopReason};
 use crate::spatial::PointIndex;
 use crate::{Error, PointCloud, Primitive, Result};
@@ -219,7 +219,7 @@ fn method_json(
     prior: f64,
     sampler: &McmcOptions,
     rays: &Rays,
-    run: &super::mcmc::McmcResult,
+    run: &McmcResult,
 ) -> serde_json::Map<String, Value> {
     let v = json!({
         "ray": { "rate": model.rate, "sigma": model.sigma, "min_cos": model.min_cos },
@@ -240,5 +240,54 @@ fn method_json(
     match v {
         Value::Object(m) => m,
         _ => serde_json::Map::new(),
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::progress::Silent;
+    use crate::ray::tests::room;
+
+    #[test]
+    fn fit_mcmc_recovers_a_scanned_room_on_the_lattice() {
+        let (cloud, truth, _) = room();
+        let options = FitOptions {
+            size: Some(1.0),
+            spacing: Some(0.5),
+            seed: 1,
+            ..Default::default()
+        };
+        let mcmc = McmcFitOptions {
+            sigma: Some(0.02),
+            ..Default::default()
+        };
+        let result = fit_mcmc(&cloud, &options, &mcmc, &Silent).unwrap();
+        assert!(!result.primitives.is_empty());
+        for p in &result.primitives {
+            let c = p.center();
+            let on_truth = truth.iter().any(|t| t.distance(&c) < 1e-9);
+            assert!(on_truth, "stray square at {c:?}");
+        }
+        let covered = cloud
+            .points
+            .iter()
+            .filter(|y| result.primitives.iter().any(|p| p.distance(y) < 0.05))
+            .count();
+        assert!(
+            covered as f64 > 0.9 * cloud.len() as f64,
+            "{covered} / {}",
+            cloud.len()
+        );
+        let json = result.to_json(serde_json::json!({}));
+        assert_eq!(json["settings"]["method"], "mcmc");
+        assert!(json["settings"].get("beta").is_none());
+        assert!(json["settings"]["mcmc"]["accepted"].as_u64().unwrap() > 0);
+        // Without sensor origins it says so.
+        let bare = PointCloud::from_points(cloud.points.clone());
+        let err = fit_mcmc(&bare, &options, &mcmc, &Silent)
+            .unwrap_err()
+            .to_string();
+        assert!(err.contains("sensor"), "{err}");
     }
 }

@@ -1,0 +1,113 @@
+//! The whole fitting pipeline: cloud → lattice → coefficients → solver → primitives.
+//!
+//! [`fit`] runs these stages, in this order, one file each:
+//!
+//! | stage | file | what it does |
+//! |---|---|---|
+//! | validate | `mod.rs` | the cloud is non-empty and finite |
+//! | resolve | [`settings`](Settings::resolve) | [`FitOptions`] (what a user may set) → [`Settings`] (every value used; the one table of defaults) |
+//! | pass | `pass.rs` | lattice candidates near the data → memory check (`budget.rs`, [`estimate_bytes`]) → coefficients → L-BFGS and polish → optional refinement |
+//! | gaps | `gaps.rs` | coarse to fine: a finer lattice where the refined pass leaves points unexplained |
+//! | re-aligned pass | `mod.rs` | with an estimated frame and refinement: the lattice re-aligned to the first pass's primitives, then pass and gaps again |
+//! | pick | `mod.rs` | of the two passes, the one with the lower [`binary_chamfer`] |
+//!
+//! What comes out is a [`FitResult`] (`result.rs`: stats, `result.json`, mesh). The
+//! ray-likelihood method of thesis ch. 4 is a separate pipeline over the same settings:
+//! [`fit_mcmc`] (`mcmc.rs`).
+//!
+//! Defaults (see `settings.rs`):
+//!
+//! | setting | default |
+//! |---|---|
+//! | `size` | the bounding-box diagonal ÷ 8, rounded down to 1, 2 or 5 × 10^k |
+//! | `spacing` | `size / 2` (the thesis's hallway: 1 m squares on a 0.5 m lattice); when `mesh` is the only type, the mesh's bounding radius (as in the registration scenes) |
+//! | `radius` | `size / 10` (tube radius of cylinders and elbows) |
+//! | `bend` | `spacing` (elbow centre-line radius) |
+//! | `cap` | `max(spacing, 5σ)`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; on very noisy scans (noise σ, see below) a point within 5σ of a surface still counts as explained. `d_cap = cap²` |
+//! | noise σ | the median off-plane spread of the flattest half of the k = 32 nearest-neighbour neighbourhoods of up to 4 000 evenly strided points ([`crate::surface::noise_level`], [`crate::surface::NOISE_MAX_POINTS`]) |
+//! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
+//! | `beta` | 32 candidates per point (24 was the least that recovered every synthetic pipe) |
+//! | `alpha` | 10 samples per candidate (thesis §6.3), `independent` model only |
+//! | frame | [`crate::frame::FrameChoice::Axis`] (the scene axes) in the library; the CLI defaults to `auto`: the scan's dominant axes ([`crate::frame::estimate_frame`]) |
+//! | lattice origin | `axis`: the scene origin; `auto` and a given frame without origin: grid planes on the data ([`crate::frame::grid_origin`]) |
+//! | refinement | off in the library (`FitOptions::refine = None`); the CLI turns it on ([`crate::refine::RefineOptions::default`]) |
+
+mod budget;
+mod gaps;
+mod mcmc;
+mod pass;
+mod result;
+mod settings;
+#[cfg(test)]
+mod tests;
+
+pub use budget::{BYTES_PER_POINT, estimate_bytes};
+pub use mcmc::{McmcFitOptions, fit_mcmc};
+pub use result::{FitResult, FitStats, binary_chamfer, primitives_mesh, result_json};
+pub use settings::{FitOptions, Method, Settings};
+
+use crate::frame::realign;
+use crate::progress::Progress;
+use crate::spatial::PointIndex;
+use crate::{Error, PointCloud, Result};
+use gaps::fill_gaps;
+use pass::fit_pass;
+
+/// Fits primitives to `cloud`: a lattice pass (candidates, coefficients, L-BFGS, polish),
+/// then, with [`FitOptions::refine`], continuous refinement ([`crate::refine`]). With an
+/// estimated frame (`auto`) and refinement, the lattice is then re-aligned to the refined
+/// primitives ([`crate::frame::realign`]: their axes and the grid phase of their centres)
+/// and fitted and refined once more; the pass with the lower binary chamfer is kept.
+pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) -> Result<FitResult> {
+    if cloud.is_empty() {
+        return Err(Error::invalid("the cloud is empty"));
+    }
+    if cloud
+        .points
+        .iter()
+        .any(|p| !p.coords.iter().all(|c| c.is_finite()))
+    {
+        return Err(Error::invalid("the cloud has non-finite coordinates"));
+    }
+    let index = PointIndex::new(&cloud.points);
+    let settings = Settings::resolve(cloud, &index, options)?;
+    progress.message(&format!("settings: {}", settings.to_json()));
+    let first = fill_gaps(
+        cloud,
+        &index,
+        fit_pass(cloud, &index, settings, progress)?,
+        progress,
+    )?;
+    let realign_pass = first.settings.refine.is_some()
+        && first.settings.frame_source == "auto"
+        && !first.primitives.is_empty();
+    if !realign_pass {
+        return Ok(first);
+    }
+    let (frame, origin) = realign(
+        &first.primitives,
+        &first.settings.frame,
+        first.settings.spacing,
+    );
+    let mut settings = first.settings.clone();
+    settings.frame = frame;
+    settings.origin = origin;
+    progress.message(&format!(
+        "re-aligned lattice: frame {:?}, origin {origin:?}",
+        frame.quaternion().coords
+    ));
+    let second = fill_gaps(
+        cloud,
+        &index,
+        fit_pass(cloud, &index, settings, progress)?,
+        progress,
+    )?;
+    let loss = |r: &FitResult| binary_chamfer(cloud, &r.primitives, &r.settings).map(|l| l.total);
+    let (a, b) = (loss(&first)?, loss(&second)?);
+    progress.message(&format!(
+        "binary chamfer: first pass {a:.6}, re-aligned pass {b:.6}"
+    ));
+    let mut best = if b <= a { second } else { first };
+    best.stats.passes = 2;
+    Ok(best)
+}

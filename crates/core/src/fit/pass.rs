@@ -1,0 +1,156 @@
+//! One lattice pass: candidates → memory check → coefficients → solve → (refinement).
+
+use std::time::Instant;
+
+use super::budget::{estimate_bytes, human_bytes};
+use super::{FitResult, FitStats, Settings};
+use crate::atlas::Shape;
+use crate::chamfer::Coefficients;
+use crate::lattice::CandidateSet;
+use crate::progress::Progress;
+use crate::refine::{RefineContext, Refined, refine};
+use crate::solve::solve;
+use crate::spatial::PointIndex;
+use crate::{Error, PointCloud, Primitive, Result};
+
+/// What [`refine`] needs from a fit under `settings` (`shapes` = `settings.shapes()`).
+pub(super) fn refine_context<'a>(
+    cloud: &'a PointCloud,
+    index: &'a PointIndex,
+    settings: &'a Settings,
+    shapes: &'a [Shape],
+) -> RefineContext<'a> {
+    RefineContext {
+        points: &cloud.points,
+        index,
+        point_spacing: settings.point_spacing,
+        sample_spacing: settings.sample_spacing,
+        chamfer: &settings.chamfer,
+        shapes,
+        frame: settings.frame,
+    }
+}
+
+/// One lattice fit under `settings`, refined when `settings.refine` is set.
+pub(super) fn fit_pass(
+    cloud: &PointCloud,
+    index: &PointIndex,
+    settings: Settings,
+    progress: &dyn Progress,
+) -> Result<FitResult> {
+    let t0 = Instant::now();
+    let mut candidates = CandidateSet::build(&settings.lattice(), cloud)?;
+    // Exact in effect: a candidate with no point within the cap of its surface can only
+    // raise the loss (see `CandidateSet::near_data`).
+    if settings.cap > 0.0 {
+        let keep = candidates.near_data(&cloud.points, settings.cap + settings.sample_spacing);
+        candidates.retain(&keep);
+    }
+    let lattice_seconds = t0.elapsed().as_secs_f64();
+    if candidates.is_empty() {
+        return Err(Error::invalid(
+            "the lattice has no candidates near the cloud",
+        ));
+    }
+    let max_samples = candidates
+        .templates
+        .iter()
+        .map(|t| t.samples.len())
+        .max()
+        .unwrap_or(1);
+    let need = estimate_bytes(
+        cloud.len(),
+        candidates.len(),
+        max_samples,
+        &settings.chamfer,
+    );
+    if need > settings.memory_budget {
+        return Err(Error::TooLarge(format!(
+            "{} points × {} candidates (β = {}) would need about {} at peak, over the \
+             memory budget of {} (by default half the machine's memory); lower --beta, \
+             use a coarser --spacing, subsample the cloud, or raise the budget \
+             (memory_budget in the Python API)",
+            cloud.len(),
+            candidates.len(),
+            settings
+                .chamfer
+                .beta
+                .map_or("all".to_string(), |b| b.to_string()),
+            human_bytes(need),
+            human_bytes(settings.memory_budget)
+        )));
+    }
+    progress.message(&format!(
+        "{} candidates, {} samples per template at most",
+        candidates.len(),
+        max_samples
+    ));
+
+    let t1 = Instant::now();
+    // Exact: a dominated candidate has p = 0 at every minimum (`chamfer::dominance`).
+    let reduced = Coefficients::build_reduced(
+        &cloud.points,
+        index,
+        &candidates,
+        &settings.chamfer,
+        progress,
+    )?;
+    let lattice_candidates = candidates.len();
+    candidates.retain(&reduced.keep_mask(lattice_candidates));
+    let coeffs = reduced.coefficients;
+    let coefficient_seconds = t1.elapsed().as_secs_f64();
+    progress.message(&format!(
+        "{} of {lattice_candidates} candidates can exist (the rest are dominated); \
+         {} entries ({} bytes each, {:.1} MiB in all)",
+        candidates.len(),
+        coeffs.entries(),
+        Coefficients::BYTES_PER_ENTRY,
+        coeffs.bytes() as f64 / (1 << 20) as f64
+    ));
+
+    let t2 = Instant::now();
+    let solution = solve(&coeffs, &settings.solver, progress)?;
+    let solve_seconds = t2.elapsed().as_secs_f64();
+
+    let chosen: Vec<usize> = (0..candidates.len())
+        .filter(|&i| solution.exists[i])
+        .collect();
+    let mut primitives: Vec<Primitive> = chosen.iter().map(|&i| candidates.primitive(i)).collect();
+    let mut existence: Vec<f64> = chosen.iter().map(|&i| solution.probability[i]).collect();
+    let mut refined = None;
+    if let Some(options) = &settings.refine {
+        let shapes = settings.shapes();
+        let ctx = refine_context(cloud, index, &settings, &shapes);
+        let r: Refined = refine(&ctx, &primitives, options)?;
+        progress.message(&format!(
+            "refinement: binary chamfer {:.6} → {:.6}, {} primitives dropped, {:.2} s",
+            r.loss_before, r.loss_after, r.dropped, r.seconds
+        ));
+        existence = r.source.iter().map(|&i| existence[i]).collect();
+        primitives = r.primitives.clone();
+        refined = Some(r);
+    }
+    let stats = FitStats {
+        points: cloud.len(),
+        lattice_candidates,
+        candidates: candidates.len(),
+        entries: coeffs.entries(),
+        bytes_per_entry: Coefficients::BYTES_PER_ENTRY,
+        coefficient_bytes: coeffs.bytes(),
+        estimated_bytes: need,
+        lattice_seconds,
+        coefficient_seconds,
+        solve_seconds,
+        refine_seconds: refined.as_ref().map_or(0.0, |r| r.seconds),
+        refine_dropped: refined.as_ref().map_or(0, |r| r.dropped),
+        passes: 1,
+        filled: 0,
+    };
+    Ok(FitResult {
+        settings,
+        primitives,
+        existence,
+        solution,
+        stats,
+    })
+}

@@ -1,0 +1,126 @@
+//! Tests of the whole pipeline on small clouds.
+
+use nalgebra::Point3;
+
+use super::*;
+use crate::chamfer::{ChamferOptions, PointModel};
+use crate::progress::Silent;
+
+/// A floor patch 2 m × 2 m at z = 0 and a wall at x = 0, aligned with a 0.5 m lattice.
+fn corner() -> PointCloud {
+    let mut pts = Vec::new();
+    for i in 0..40 {
+        for j in 0..40 {
+            let (a, b) = (i as f64 * 0.05 + 0.025, j as f64 * 0.05 + 0.025);
+            pts.push(Point3::new(a, b, 0.0));
+            pts.push(Point3::new(0.0, a, b));
+        }
+    }
+    PointCloud::from_points(pts)
+}
+
+#[test]
+fn fits_an_aligned_corner_with_squares() {
+    let options = FitOptions {
+        size: Some(1.0),
+        ..Default::default()
+    };
+    let result = fit(&corner(), &options, &Silent).unwrap();
+    assert_eq!(result.settings.spacing, 0.5);
+    // Every input point is on a chosen square (within the sample spacing).
+    for p in corner().points.iter().step_by(7) {
+        let d = result
+            .primitives
+            .iter()
+            .map(|q| q.distance(p))
+            .fold(f64::INFINITY, f64::min);
+        assert!(d < 1e-9, "point {p:?} is {d} from the model");
+    }
+    // Two 2 m × 2 m faces need at least 4 squares each, and the polish leaves no
+    // square that is off the data.
+    assert!(result.primitives.len() >= 8, "{}", result.primitives.len());
+    for q in &result.primitives {
+        let c = q.center();
+        assert!(
+            c.z.abs() < 1e-12 || c.x.abs() < 1e-12,
+            "stray square at {c:?}"
+        );
+    }
+}
+
+#[test]
+fn bad_options_are_errors() {
+    let c = corner();
+    let bad = FitOptions {
+        size: Some(-1.0),
+        ..Default::default()
+    };
+    assert!(fit(&c, &bad, &Silent).is_err());
+    let bad = FitOptions {
+        cap: Some(f64::NAN),
+        ..Default::default()
+    };
+    assert!(fit(&c, &bad, &Silent).is_err());
+    assert!(fit(&PointCloud::default(), &FitOptions::default(), &Silent).is_err());
+    let tiny = FitOptions {
+        memory_budget: Some(10),
+        ..Default::default()
+    };
+    assert!(matches!(fit(&c, &tiny, &Silent), Err(Error::TooLarge(_))));
+}
+
+#[test]
+fn memory_budget_covers_the_peak_and_names_the_settings() {
+    let existence = ChamferOptions {
+        beta: Some(32),
+        ..Default::default()
+    };
+    // 12 B per entry + 8 B offset, plus the polish transpose (16 B per candidate).
+    let base = BYTES_PER_POINT;
+    assert_eq!(
+        estimate_bytes(1, 5000, 256, &existence),
+        32 * 12 + 8 + 32 * 16 + base
+    );
+    let independent = ChamferOptions {
+        model: PointModel::Independent,
+        alpha: Some(10),
+        ..existence.clone()
+    };
+    // 320 entries: the build's copy of them (and where each row lies) outweighs the
+    // transpose.
+    assert_eq!(
+        estimate_bytes(1, 5000, 256, &independent),
+        320 * 12 + 8 + (320 * 12 + 16) + base
+    );
+    // Fewer candidates than β: every candidate is an entry.
+    assert_eq!(
+        estimate_bytes(2, 3, 256, &existence),
+        2 * (3 * 12 + 8 + (3 * 12 + 16) + base)
+    );
+
+    let c = corner();
+    let fitted = fit(&c, &FitOptions::default(), &Silent).unwrap();
+    let need = fitted.stats.estimated_bytes;
+    assert!(need >= fitted.stats.coefficient_bytes as u64);
+    let just_under = FitOptions {
+        memory_budget: Some(need - 1),
+        ..Default::default()
+    };
+    let Err(Error::TooLarge(msg)) = fit(&c, &just_under, &Silent) else {
+        panic!("a budget below the estimate must refuse");
+    };
+    for hint in [
+        "--beta",
+        "--spacing",
+        "subsample",
+        "memory_budget",
+        "budget",
+    ] {
+        assert!(msg.contains(hint), "{msg:?} does not mention {hint}");
+    }
+    let exact = FitOptions {
+        memory_budget: Some(need),
+        ..Default::default()
+    };
+    assert!(fit(&c, &exact, &Silent).is_ok());
+}
