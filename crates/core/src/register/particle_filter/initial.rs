@@ -37,8 +37,9 @@ impl Context<'_> {
 
     /// The box of model-centre positions (scene units) for which the model's samples,
     /// rotated by `rotation` and scaled, lie inside the scene box (an object lies inside
-    /// the scan), each extent first multiplied by [`RegisterOptions::prior_margin`];
-    /// along an axis where the model does not fit, the box's midpoint.
+    /// the scan), each extent first multiplied by
+    /// [`RegisterOptions::prior_margin`](super::RegisterOptions::prior_margin); along an
+    /// axis where the model does not fit, the box's midpoint.
     pub fn translation_prior(
         &self,
         rotation: &UnitQuaternion<f64>,
@@ -65,10 +66,12 @@ impl Context<'_> {
     }
 
     /// The first population: `initial_particles` prior draws, or with screening
-    /// ([`RegisterOptions::screen`]) the best `initial_particles` of that many draws by a
-    /// cheap proxy of the measurement, the point-term gain `Σ_y max(0, δ² − d_i(y)²)` at
-    /// the first kernel δ over a stride subsample of about
-    /// [`RegisterOptions::screen_points`] cloud points.
+    /// ([`RegisterOptions::screen`](super::RegisterOptions::screen)) the best
+    /// `initial_particles` of that many draws by a cheap proxy of the measurement, the
+    /// point-term gain `Σ_y max(0, δ² − d_i(y)²)` at the first kernel δ over a stride
+    /// subsample of about
+    /// [`RegisterOptions::screen_points`](super::RegisterOptions::screen_points) cloud
+    /// points.
     pub(super) fn initial(&self, rng: &mut ChaCha8Rng) -> Vec<Pose> {
         let o = self.options;
         if let Some(index) = self.vote_index.as_ref().filter(|_| o.vote_peaks > 0) {
@@ -103,13 +106,15 @@ impl Context<'_> {
             .collect()
     }
 
-    /// The first population with translation votes: [`RegisterOptions::screen_draws`]
-    /// prior rotations (with a scale range, each at stratified scales across the range,
-    /// at most a factor 1.25 apart), each with the translations of its
-    /// [`RegisterOptions::vote_peaks`] best vote peaks over the translation prior
-    /// ([`Context::vote`], one grid cell precise); the [`RegisterOptions::vote_keep`]
-    /// candidates with the most votes above clutter per unit model area, each
-    /// translation refined at point level ([`refine_peak`]).
+    /// The first population with translation votes:
+    /// [`RegisterOptions::screen_draws`](super::RegisterOptions::screen_draws) prior
+    /// rotations (with a scale range, each at stratified scales across the range, at most a
+    /// factor 1.25 apart), each with the translations of its
+    /// [`RegisterOptions::vote_peaks`](super::RegisterOptions::vote_peaks) best vote peaks
+    /// over the translation prior ([`Context::vote`], one grid cell precise); the
+    /// [`RegisterOptions::vote_keep`](super::RegisterOptions::vote_keep) candidates with
+    /// the most votes above clutter per unit model area, each translation refined at point
+    /// level ([`refine_peak`]).
     fn initial_by_vote(&self, index: &VoteIndex, rng: &mut ChaCha8Rng) -> Vec<Pose> {
         let o = self.options;
         let draws = o.screen_draws().max(1);
@@ -177,9 +182,9 @@ impl Context<'_> {
     }
 
     /// `pose`'s rotation and scale with the translations of the `peaks` best vote peaks
-    /// over its translation prior (the model inside the scene box; votes within a cell
-    /// of it count), cells of [`RegisterOptions::vote_bin`] × the model size; with the
-    /// votes of each peak.
+    /// over its translation prior (the model inside the scene box; votes within a cell of
+    /// it count), cells of [`RegisterOptions::vote_bin`](super::RegisterOptions::vote_bin)
+    /// × the model size; with the votes of each peak.
     pub fn vote(&self, index: &VoteIndex, pose: &Pose, peaks: usize) -> Vec<(Pose, f64)> {
         let (clo, chi) = self.translation_prior(&pose.rotation, pose.scale);
         let shift = pose.rotation * (self.centre.coords * pose.scale);

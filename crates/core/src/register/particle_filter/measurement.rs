@@ -11,7 +11,7 @@ use crate::Result;
 use crate::chamfer::{CandidateGeometry, Coefficients};
 use crate::progress::Silent;
 use crate::register::geometry::{Chain, OutlierBox, Particles};
-use crate::solve::{SolverOptions, solve};
+use crate::solve::{Solution, SolverOptions, solve};
 
 /// What [`Context::measure`] returns for each pose.
 pub(crate) struct Measurement {
@@ -24,11 +24,12 @@ pub(crate) struct Measurement {
 
 impl Context<'_> {
     /// Existence probabilities of `poses` next to `found` and the outlier primitive (which
-    /// come first in the candidate set), and the measurement of every pose: the binary chamfer decrease when it alone is
-    /// added to the outlier primitive and `found`,
-    /// `Σ_y max(0, b(y) − d_i(y)) − w_prim g_i`, `b(y)` = the background's cost of `y`,
-    /// with the primitive weight calibrated for `support` points ([`Context::price`])
-    /// unless [`RegisterOptions::primitive_weight`] is set.
+    /// come first in the candidate set), and the measurement of every pose: the binary
+    /// chamfer decrease when it alone is added to the outlier primitive and `found`, `Σ_y
+    /// max(0, b(y) − d_i(y)) − w_prim g_i`, `b(y)` = the background's cost of `y`, with the
+    /// primitive weight calibrated for `support` points ([`Context::price`]) unless
+    /// [`RegisterOptions::primitive_weight`](super::RegisterOptions::primitive_weight) is
+    /// set.
     pub fn measure(
         &self,
         found: &[Pose],
@@ -76,21 +77,49 @@ impl Context<'_> {
             ..Default::default()
         };
         let solution = solve(&coeffs, &solver, &Silent)?;
-        // Each point's cost under the background (outlier primitive and found objects),
-        // and each particle's gain over all points — not only over the β candidates each
-        // point keeps in the chamfer: in a concentrated population many particles pass
-        // near every object point and would crowd one another out of those lists.
-        let cost: Vec<f64> = self
-            .cloud
+        let cost = self.background_cost(&outlier, &background);
+        let gain = self.point_gains(&particles, &cost);
+        // With a scale, clutter gains in proportion to the surface (scale²): each particle
+        // is charged the clutter gain of its own area beyond that of the model at scale 1
+        // (which the calibrated weight prices), or larger poses would win on clutter.
+        let clutter = self.price(kernel2, 0.0);
+        let score = (0..n)
+            .map(|i| {
+                let s = particles.set.poses[i].scale;
+                gain[i] - weight * coeffs.g[offset + i] - clutter * (s * s - 1.0)
+            })
+            .collect();
+        let existence = if polish {
+            self.polished_existence(&solution)
+        } else {
+            solution.probability
+        };
+        Ok(Measurement {
+            score,
+            existence: existence[offset..].to_vec(),
+        })
+    }
+
+    /// Each point's cost under the background (outlier primitive and found objects): its
+    /// squared surface distance to the nearest of them (squared scene units).
+    fn background_cost(&self, outlier: &OutlierBox, background: &Particles) -> Vec<f64> {
+        self.cloud
             .par_iter()
             .map(|y| {
                 (0..background.len())
                     .map(|k| background.surface_distance(k, y))
                     .fold(outlier.surface_distance(0, y), f64::min)
             })
-            .collect();
+            .collect()
+    }
+
+    /// Each particle's point-term gain over the background, `Σ_y max(0, b(y) − d_i(y)²)`
+    /// with `b = cost`, over all points — not only over the β candidates each point keeps
+    /// in the chamfer: in a concentrated population many particles pass near every object
+    /// point and would crowd one another out of those lists.
+    fn point_gains(&self, particles: &Particles, cost: &[f64]) -> Vec<f64> {
         // (A point farther than √b(y) from the particle's bounding box gains nothing.)
-        let gain: Vec<f64> = particles
+        particles
             .set
             .poses
             .par_iter()
@@ -99,7 +128,7 @@ impl Context<'_> {
                 let (c, r) = particles.bounding_ball(i);
                 self.cloud
                     .iter()
-                    .zip(&cost)
+                    .zip(cost)
                     .filter_map(|(y, &b)| {
                         if (y - c).norm_squared() > (r + b.sqrt()).powi(2) {
                             return None;
@@ -114,37 +143,25 @@ impl Context<'_> {
                     })
                     .sum()
             })
-            .collect();
-        // With a scale, clutter gains in proportion to the surface (scale²): each particle
-        // is charged the clutter gain of its own area beyond that of the model at scale 1
-        // (which the calibrated weight prices), or larger poses would win on clutter.
-        let clutter = self.price(kernel2, 0.0);
-        let score = (0..n)
-            .map(|i| {
-                let s = particles.set.poses[i].scale;
-                gain[i] - weight * coeffs.g[offset + i] - clutter * (s * s - 1.0)
+            .collect()
+    }
+
+    /// The existence of every candidate after polish: exactly 0 where the polished binary
+    /// solution drops it, at least
+    /// [`RegisterOptions::threshold`](super::RegisterOptions::threshold) where it keeps it.
+    fn polished_existence(&self, solution: &Solution) -> Vec<f64> {
+        solution
+            .exists
+            .iter()
+            .zip(&solution.probability)
+            .map(|(&e, &p)| {
+                if e {
+                    p.max(self.options.threshold)
+                } else {
+                    p.min(0.0)
+                }
             })
-            .collect();
-        let existence = if polish {
-            solution
-                .exists
-                .iter()
-                .zip(&solution.probability)
-                .map(|(&e, &p)| {
-                    if e {
-                        p.max(self.options.threshold)
-                    } else {
-                        p.min(0.0)
-                    }
-                })
-                .collect::<Vec<f64>>()
-        } else {
-            solution.probability
-        };
-        Ok(Measurement {
-            score,
-            existence: existence[offset..].to_vec(),
-        })
+            .collect()
     }
 
     /// What an object must gain to exist: the point-term gain expected from uniform

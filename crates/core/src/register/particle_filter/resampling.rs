@@ -10,9 +10,10 @@ use crate::Pose;
 
 impl Context<'_> {
     /// A random move of `pose`: rotation by the exponential map of a Gaussian axis-angle
-    /// vector (σ = `spread / lever` rad) about the model centre (about the origin when
-    /// the translation is fixed); Gaussian translation (σ = `spread`); log-normal scale
-    /// (σ = `spread / lever`), clamped to [`RegisterOptions::scale`].
+    /// vector (σ = `spread / lever` rad) about the model centre (about the origin when the
+    /// translation is fixed); Gaussian translation (σ = `spread`); log-normal scale (σ =
+    /// `spread / lever`), clamped to
+    /// [`RegisterOptions::scale`](super::RegisterOptions::scale).
     pub(super) fn perturb(&self, pose: &Pose, spread: f64, rng: &mut ChaCha8Rng) -> Pose {
         let o = self.options;
         let sigma = spread / (self.lever * pose.scale);
