@@ -153,15 +153,9 @@ impl Context<'_> {
             best = (poses[ib], sb);
             let weights = tempered_weights(&score, o.ess);
             let ess = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
-            let mut order: Vec<usize> = (0..poses.len()).collect();
-            order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
-            // Each particle's basin: the flip f for which best ∘ f is nearest in rotation.
-            let labels: Vec<usize> = poses.iter().map(|p| self.basin(&best.0, p)).collect();
-            let mut leading = vec![None; self.flips.len()];
-            for &k in &order {
-                leading[labels[k]].get_or_insert(k);
-            }
-            basins = leading
+            let ranking = self.rank(&poses, &score, ib);
+            basins = ranking
+                .leading
                 .iter()
                 .skip(1)
                 .map(|k| k.map(|k| poses[k]))
@@ -176,11 +170,7 @@ impl Context<'_> {
             progress.advance(1);
             let at_end = kernel <= o.kernel_end * self.size * (1.0 + 1e-9);
             if at_end {
-                let moved = self.lever * previous.rotation.angle_to(&best.0.rotation)
-                    + (previous.translation - best.0.translation).norm()
-                    + self.lever * (previous.scale - best.0.scale).abs();
-                let gained = sb - rounds[rounds.len().saturating_sub(2)].best_score;
-                let settled = moved < 0.5 * kernel || gained <= 5e-3 * sb.abs();
+                let settled = self.settled(&previous, &best.0, &rounds, kernel);
                 stable = if settled { stable + 1 } else { 0 };
                 if stable >= o.settle_rounds {
                     break;
@@ -189,74 +179,7 @@ impl Context<'_> {
             if round + 1 == o.max_rounds {
                 break;
             }
-            // Keep the best unchanged, move the leaders downhill (a few trimmed-ICP steps at
-            // the kernel width: the local optimum of the measurement for a fixed inlier
-            // set), resample the rest (systematic) and move them at random.
-            let mut next = Vec::with_capacity(o.particles);
-            next.push(poses[ib]);
-            let icp = IcpOptions {
-                start_distance: kernel,
-                min_distance: kernel,
-                shrink: 1.0,
-                max_iterations: o.local_steps,
-                tolerance: 0.0,
-                scale_range: o.scale,
-            };
-            // The leaders, the best of every other basin, and the symmetry jumps of the
-            // leaders (turned by π about the model's principal axes), each moved downhill.
-            let mut leaders: Vec<Pose> = order
-                .iter()
-                .take(o.local_moves.min(o.particles.saturating_sub(1)))
-                .map(|&k| poses[k])
-                .collect();
-            for k in leading.iter().skip(1).flatten() {
-                if leaders.len() + 1 < o.particles
-                    && order[..o.local_moves.min(order.len())]
-                        .iter()
-                        .all(|j| j != k)
-                {
-                    leaders.push(poses[*k]);
-                }
-            }
-            for &k in order.iter().take(o.flip_moves) {
-                for f in self.flips.iter().skip(1) {
-                    if leaders.len() + 1 < o.particles {
-                        leaders.push(poses[k].compose(f));
-                    }
-                }
-            }
-            next.extend(
-                leaders
-                    .par_iter()
-                    .map(|p| {
-                        refine(&self.mesh, &self.grid, self.cloud, *p, self.freedom(), &icp).pose
-                    })
-                    .collect::<Vec<_>>(),
-            );
-            let spread = o.spread * kernel;
-            // Every other basin keeps its quota (resampled by its own weights), so that
-            // a basin the coarse kernels disfavour is still explored when the fine ones
-            // can tell the basins apart; the rest is resampled from all.
-            let quota = (o.basin_share * o.particles as f64).round() as usize;
-            let mut picks = Vec::new();
-            for l in 1..self.flips.len() {
-                let members: Vec<usize> = (0..poses.len()).filter(|&i| labels[i] == l).collect();
-                let room = o.particles.saturating_sub(next.len() + picks.len());
-                if members.is_empty() || room == 0 {
-                    continue;
-                }
-                let member_scores: Vec<f64> = members.iter().map(|&i| score[i]).collect();
-                let w = tempered_weights(&member_scores, o.ess);
-                picks.extend(
-                    systematic(&w, quota.min(room), rng)
-                        .into_iter()
-                        .map(|k| members[k]),
-                );
-            }
-            let room = o.particles.saturating_sub(next.len() + picks.len());
-            picks.extend(systematic(&weights, room, rng));
-            next.extend(picks.iter().map(|&k| self.perturb(&poses[k], spread, rng)));
-            poses = next;
+            poses = self.next_population(&poses, &score, &weights, &ranking, kernel, rng);
         }
         Ok(FilterResult {
             pose: best.0,
@@ -266,4 +189,149 @@ impl Context<'_> {
             basins,
         })
     }
+
+    /// The particles `poses` ranked by `score` and sorted into the basins of the symmetry
+    /// flips of the best, `poses[best]`.
+    fn rank(&self, poses: &[Pose], score: &[f64], best: usize) -> Ranking {
+        let mut order: Vec<usize> = (0..poses.len()).collect();
+        order.sort_by(|&a, &b| score[b].total_cmp(&score[a]).then(a.cmp(&b)));
+        // Each particle's basin: the flip f for which best ∘ f is nearest in rotation.
+        let labels: Vec<usize> = poses.iter().map(|p| self.basin(&poses[best], p)).collect();
+        let mut leading = vec![None; self.flips.len()];
+        for &k in &order {
+            leading[labels[k]].get_or_insert(k);
+        }
+        Ranking {
+            best,
+            order,
+            labels,
+            leading,
+        }
+    }
+
+    /// Whether the best pose has settled at the last kernel: it moved (rotation and scale
+    /// changes weighted by the lever arm) less than half the kernel since the previous
+    /// round's best, or the best score (the last of `rounds`) gained at most 0.5 %.
+    fn settled(&self, previous: &Pose, best: &Pose, rounds: &[RoundStats], kernel: f64) -> bool {
+        let moved = self.lever * previous.rotation.angle_to(&best.rotation)
+            + (previous.translation - best.translation).norm()
+            + self.lever * (previous.scale - best.scale).abs();
+        let sb = rounds[rounds.len() - 1].best_score;
+        let gained = sb - rounds[rounds.len().saturating_sub(2)].best_score;
+        moved < 0.5 * kernel || gained <= 5e-3 * sb.abs()
+    }
+
+    /// The next round's particles: the best unchanged, the leaders moved
+    /// downhill (a few trimmed-ICP steps at the kernel width: the local optimum of the
+    /// measurement for a fixed inlier set), the rest resampled ([`Context::resample`]) and
+    /// moved at random.
+    fn next_population(
+        &self,
+        poses: &[Pose],
+        score: &[f64],
+        weights: &[f64],
+        ranking: &Ranking,
+        kernel: f64,
+        rng: &mut ChaCha8Rng,
+    ) -> Vec<Pose> {
+        let o = self.options;
+        let mut next = Vec::with_capacity(o.particles);
+        next.push(poses[ranking.best]);
+        let icp = IcpOptions {
+            start_distance: kernel,
+            min_distance: kernel,
+            shrink: 1.0,
+            max_iterations: o.local_steps,
+            tolerance: 0.0,
+            scale_range: o.scale,
+        };
+        next.extend(
+            self.leaders(poses, ranking)
+                .par_iter()
+                .map(|p| refine(&self.mesh, &self.grid, self.cloud, *p, self.freedom(), &icp).pose)
+                .collect::<Vec<_>>(),
+        );
+        let spread = o.spread * kernel;
+        let picks = self.resample(score, weights, &ranking.labels, next.len(), rng);
+        next.extend(picks.iter().map(|&k| self.perturb(&poses[k], spread, rng)));
+        next
+    }
+
+    /// The particles moved downhill: the leaders, the best of every other basin, and the
+    /// symmetry jumps of the leaders (turned by π about the model's principal axes), so
+    /// many that with the best they stay under [`RegisterOptions::particles`].
+    fn leaders(&self, poses: &[Pose], ranking: &Ranking) -> Vec<Pose> {
+        let o = self.options;
+        let order = &ranking.order;
+        let mut leaders: Vec<Pose> = order
+            .iter()
+            .take(o.local_moves.min(o.particles.saturating_sub(1)))
+            .map(|&k| poses[k])
+            .collect();
+        for k in ranking.leading.iter().skip(1).flatten() {
+            if leaders.len() + 1 < o.particles
+                && order[..o.local_moves.min(order.len())]
+                    .iter()
+                    .all(|j| j != k)
+            {
+                leaders.push(poses[*k]);
+            }
+        }
+        for &k in order.iter().take(o.flip_moves) {
+            for f in self.flips.iter().skip(1) {
+                if leaders.len() + 1 < o.particles {
+                    leaders.push(poses[k].compose(f));
+                }
+            }
+        }
+        leaders
+    }
+
+    /// Indices of the particles resampled (systematic) to fill the population after
+    /// `kept` particles: every other basin keeps its quota
+    /// ([`RegisterOptions::basin_share`]), resampled by its own weights, so that a basin
+    /// the coarse kernels disfavour is still explored when the fine ones can tell the
+    /// basins apart; the rest is resampled from all by `weights`.
+    fn resample(
+        &self,
+        score: &[f64],
+        weights: &[f64],
+        labels: &[usize],
+        kept: usize,
+        rng: &mut ChaCha8Rng,
+    ) -> Vec<usize> {
+        let o = self.options;
+        let quota = (o.basin_share * o.particles as f64).round() as usize;
+        let mut picks = Vec::new();
+        for l in 1..self.flips.len() {
+            let members: Vec<usize> = (0..labels.len()).filter(|&i| labels[i] == l).collect();
+            let room = o.particles.saturating_sub(kept + picks.len());
+            if members.is_empty() || room == 0 {
+                continue;
+            }
+            let member_scores: Vec<f64> = members.iter().map(|&i| score[i]).collect();
+            let w = tempered_weights(&member_scores, o.ess);
+            picks.extend(
+                systematic(&w, quota.min(room), rng)
+                    .into_iter()
+                    .map(|k| members[k]),
+            );
+        }
+        let room = o.particles.saturating_sub(kept + picks.len());
+        picks.extend(systematic(weights, room, rng));
+        picks
+    }
+}
+
+/// One round's particles ranked by their measurement, with their basins.
+struct Ranking {
+    /// The best particle (ties: the lowest index).
+    best: usize,
+    /// Particle indices, best score first (ties: lowest index first).
+    order: Vec<usize>,
+    /// Each particle's basin: the index of the flip `f` of the best particle `best` for
+    /// which `best ∘ f` is nearest in rotation (0 = the best's own basin).
+    labels: Vec<usize>,
+    /// For each basin, its best particle, if any.
+    leading: Vec<Option<usize>>,
 }
