@@ -86,7 +86,7 @@ use crate::atlas::{MeshShape, Shape};
 use crate::progress::Progress;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 use geometry::DistanceGrid;
-use particle_filter::Context;
+use particle_filter::{Context, FilterResult};
 
 /// The search context of [`register`] and the model's symmetry flips.
 fn context<'a>(
@@ -220,103 +220,19 @@ pub fn register(
 ) -> Result<Registration> {
     let start = Instant::now();
     let (context, flips) = context(cloud, mesh, options)?;
-    let (grid, size, shape) = (context.grid.clone(), context.size, context.shape.clone());
-    let largest_scale = options.scale.map_or(1.0, |s| s.1);
+    let size = context.size;
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let wanted = options.count.unwrap_or(options.max_objects);
     progress.start("register", (wanted * options.max_rounds) as u64);
     let mut objects: Vec<FoundObject> = Vec::new();
-    let inlier_distance = options.inlier_distance * size;
     for _ in 0..wanted {
         let found: Vec<Pose> = objects.iter().map(|o| o.primitive.pose).collect();
         let filtered = context.run(&found, &mut rng, progress)?;
-        let scale = filtered.pose.scale;
-        let kernel = options.kernel_end * size * scale;
-        let freedom = context.freedom();
-        // Approximate symmetries: also try the pose turned by π about each principal axis
-        // of the model (through the rotation pivot), each polished by ICP at the kernel.
-        let settle = icp::IcpOptions {
-            start_distance: options.kernel_start * size * scale,
-            min_distance: kernel,
-            shrink: 0.8,
-            max_iterations: 15,
-            tolerance: 1e-6 * size * scale,
-            scale_range: options.scale,
-        };
-        let tries: Vec<Pose> = flips
-            .iter()
-            .enumerate()
-            .map(|(k, f)| {
-                let p = match k
-                    .checked_sub(1)
-                    .and_then(|b| filtered.basins.get(b).copied().flatten())
-                {
-                    Some(b) => b,
-                    None => filtered.pose.compose(f),
-                };
-                if options.icp {
-                    icp::refine(mesh, &grid, &cloud.points, p, freedom, &settle).pose
-                } else {
-                    p
-                }
-            })
-            .collect();
-        let m = context.measure(
-            &found,
-            tries.clone(),
-            kernel,
-            options.search_support,
-            false,
-            &mut rng,
-        )?;
-        let pick = (0..tries.len())
-            .max_by(|&a, &b| m.score[a].total_cmp(&m.score[b]).then(b.cmp(&a)))
-            .unwrap_or(0);
-
-        let chosen = tries[pick];
-        let refined = icp::refine(
-            mesh,
-            &grid,
-            &cloud.points,
-            chosen,
-            if options.icp {
-                freedom
-            } else {
-                icp::Freedom {
-                    translation: false,
-                    scale: false,
-                }
-            },
-            &icp::IcpOptions {
-                start_distance: kernel,
-                min_distance: inlier_distance * scale,
-                shrink: 0.8,
-                max_iterations: if options.icp { 60 } else { 0 },
-                tolerance: 1e-6 * size * largest_scale,
-                scale_range: options.scale,
-            },
-        );
-        // Existence of the new object next to the outlier primitive and those found.
-        let m = context.measure(
-            &found,
-            vec![refined.pose],
-            kernel,
-            options.min_support,
-            true,
-            &mut rng,
-        )?;
-        let existence = m.existence[0];
-        if options.count.is_none() && existence < options.threshold {
+        let object = settle_object(&context, cloud, mesh, &flips, &found, filtered, &mut rng)?;
+        if options.count.is_none() && object.existence < options.threshold {
             break;
         }
-        objects.push(FoundObject {
-            primitive: Primitive::new(shape.clone(), refined.pose),
-            existence,
-            inlier_share: refined.inliers.len() as f64 / cloud.len() as f64,
-            rms: refined.rms,
-            filter_pose: filtered.pose,
-            rounds: filtered.rounds,
-        });
+        objects.push(object);
     }
     progress.finish();
     // Final joint existence of everything found.
@@ -333,6 +249,135 @@ pub fn register(
         model_size: size,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The object the filter's answer `filtered` stands for, next to those `found`: the
+/// best of its symmetry tries ([`symmetry_tries`]) by the measurement at the last
+/// kernel, refined by trimmed ICP against the exact surface ([`refine_object`]), with
+/// its existence in a polished chamfer solve over the outlier primitive, `found` and it.
+fn settle_object(
+    context: &Context,
+    cloud: &PointCloud,
+    mesh: &MeshShape,
+    flips: &[Pose],
+    found: &[Pose],
+    filtered: FilterResult,
+    rng: &mut ChaCha8Rng,
+) -> Result<FoundObject> {
+    let options = context.options;
+    let scale = filtered.pose.scale;
+    let kernel = options.kernel_end * context.size * scale;
+    let tries = symmetry_tries(context, cloud, mesh, flips, &filtered);
+    let m = context.measure(
+        found,
+        tries.clone(),
+        kernel,
+        options.search_support,
+        false,
+        rng,
+    )?;
+    let pick = (0..tries.len())
+        .max_by(|&a, &b| m.score[a].total_cmp(&m.score[b]).then(b.cmp(&a)))
+        .unwrap_or(0);
+    let refined = refine_object(context, cloud, mesh, tries[pick], kernel, scale);
+    // Existence of the new object next to the outlier primitive and those found.
+    let m = context.measure(
+        found,
+        vec![refined.pose],
+        kernel,
+        options.min_support,
+        true,
+        rng,
+    )?;
+    Ok(FoundObject {
+        primitive: Primitive::new(context.shape.clone(), refined.pose),
+        existence: m.existence[0],
+        inlier_share: refined.inliers.len() as f64 / cloud.len() as f64,
+        rms: refined.rms,
+        filter_pose: filtered.pose,
+        rounds: filtered.rounds,
+    })
+}
+
+/// Approximate symmetries: the filter's best pose turned by π about each principal
+/// axis of the model (through the rotation pivot) — or where the filter kept a particle
+/// in that basin, its best there — each polished by ICP at the kernel (with
+/// [`RegisterOptions::icp`]); the first is the best pose itself.
+fn symmetry_tries(
+    context: &Context,
+    cloud: &PointCloud,
+    mesh: &MeshShape,
+    flips: &[Pose],
+    filtered: &FilterResult,
+) -> Vec<Pose> {
+    let options = context.options;
+    let (size, scale) = (context.size, filtered.pose.scale);
+    let freedom = context.freedom();
+    let settle = icp::IcpOptions {
+        start_distance: options.kernel_start * size * scale,
+        min_distance: options.kernel_end * size * scale,
+        shrink: 0.8,
+        max_iterations: 15,
+        tolerance: 1e-6 * size * scale,
+        scale_range: options.scale,
+    };
+    flips
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let p = match k
+                .checked_sub(1)
+                .and_then(|b| filtered.basins.get(b).copied().flatten())
+            {
+                Some(b) => b,
+                None => filtered.pose.compose(f),
+            };
+            if options.icp {
+                icp::refine(mesh, &context.grid, &cloud.points, p, freedom, &settle).pose
+            } else {
+                p
+            }
+        })
+        .collect()
+}
+
+/// `chosen` refined by trimmed ICP against the exact mesh surface, from the kernel
+/// `kernel` down to the inlier distance (at the pose's `scale`); without
+/// [`RegisterOptions::icp`], no steps: only its inliers and RMS.
+fn refine_object(
+    context: &Context,
+    cloud: &PointCloud,
+    mesh: &MeshShape,
+    chosen: Pose,
+    kernel: f64,
+    scale: f64,
+) -> icp::IcpResult {
+    let options = context.options;
+    let size = context.size;
+    let largest_scale = options.scale.map_or(1.0, |s| s.1);
+    let inlier_distance = options.inlier_distance * size;
+    icp::refine(
+        mesh,
+        &context.grid,
+        &cloud.points,
+        chosen,
+        if options.icp {
+            context.freedom()
+        } else {
+            icp::Freedom {
+                translation: false,
+                scale: false,
+            }
+        },
+        &icp::IcpOptions {
+            start_distance: kernel,
+            min_distance: inlier_distance * scale,
+            shrink: 0.8,
+            max_iterations: if options.icp { 60 } else { 0 },
+            tolerance: 1e-6 * size * largest_scale,
+            scale_range: options.scale,
+        },
+    )
 }
 
 /// The identity and the turns by π about the three principal axes of `samples` (local
