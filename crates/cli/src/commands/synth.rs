@@ -8,7 +8,7 @@ use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::fit::result_json;
 use primfit_core::io::{self, Encoding};
 use primfit_core::synth::{self, Density, Misalignment, Noise, Scene};
-use serde_json::json;
+use serde_json::{Value, json};
 
 use super::{Output, check_output};
 
@@ -118,105 +118,8 @@ fn density(points: Option<usize>, default: Density) -> Density {
 
 /// Runs `primfit synth`.
 pub fn run(a: SynthArgs, out: &Output) -> Result<()> {
-    let inputs: Vec<&std::path::Path> = a.model.as_deref().into_iter().collect();
-    check_output(&a.output, &inputs)?;
-    if let Some(truth) = &a.truth {
-        check_output(truth, &inputs)?;
-        if truth == &a.output {
-            bail!("{}: given both as -o and as --truth", truth.display());
-        }
-    }
-    if a.points == Some(0) {
-        bail!("--points must be at least 1");
-    }
-    let noise = |default_jitter: f64| Noise {
-        jitter: a.jitter.unwrap_or(default_jitter),
-        drift: a.drift,
-    };
-    let misalignment = Misalignment {
-        offset: a.offset,
-        angle: a.angle.to_radians(),
-    };
-    let (scene, extra) = match a.kind {
-        Kind::Hallway => {
-            let d = synth::HallwayParams::default();
-            let p = synth::HallwayParams {
-                length: a.length.unwrap_or(d.length),
-                width: a.width.unwrap_or(d.width),
-                height: a.height.unwrap_or(d.height),
-                side: a.size.unwrap_or(d.side),
-                ceiling: a.ceiling,
-                density: density(a.points, d.density),
-                noise: noise(d.noise.jitter),
-                misalignment,
-                seed: a.seed,
-            };
-            (synth::hallway(&p)?, json!({}))
-        }
-        Kind::Pipe => {
-            let d = synth::PipeParams::default();
-            let p = synth::PipeParams {
-                segments: a.segments.unwrap_or(d.segments),
-                segment_length: a.size.unwrap_or(d.segment_length),
-                bend: a.bend.or(d.bend),
-                radius: a.radius.or(d.radius),
-                density: density(a.points, d.density),
-                noise: noise(d.noise.jitter),
-                misalignment,
-                seed: a.seed,
-                ..d
-            };
-            (synth::pipe(&p)?, json!({}))
-        }
-        Kind::NineCylinders => {
-            if a.mask > 511 {
-                bail!("--mask must be in 0..=511, got {}", a.mask);
-            }
-            let d = synth::NineCylinderParams::default();
-            let p = synth::NineCylinderParams {
-                mask: a.mask,
-                radius: a.radius.unwrap_or(d.radius),
-                density: density(a.points, d.density),
-                noise: noise(d.noise.jitter),
-                offset: a.offset,
-                seed: a.seed,
-                ..d
-            };
-            (synth::nine_cylinders(&p)?, json!({ "mask": a.mask }))
-        }
-        Kind::SixInARow => {
-            let d = synth::SixInARowParams::default();
-            let p = synth::SixInARowParams {
-                points: a.points.unwrap_or(d.points),
-                jitter: a.jitter.unwrap_or(d.jitter),
-                seed: a.seed,
-                ..d
-            };
-            let six = synth::six_in_a_row(&p)?;
-            (six.scene, json!({ "true_index": six.true_index }))
-        }
-        Kind::Registration => {
-            let mesh = match &a.model {
-                Some(path) => MeshShape::new(path.display().to_string(), io::read_mesh(path)?)?,
-                None => synth::asymmetric_object(),
-            };
-            let d = synth::RegistrationParams::default();
-            let p = synth::RegistrationParams {
-                inliers: a.inliers,
-                outliers: a.outliers,
-                objects: a.objects,
-                translation: a.translation,
-                noise: noise(d.noise.jitter),
-                seed: a.seed,
-                ..d
-            };
-            (
-                synth::registration(&mesh, &p)?,
-                json!({ "inliers": a.inliers, "outliers": a.outliers,
-                    "objects": a.objects, "translation": a.translation }),
-            )
-        }
-    };
+    check_args(&a)?;
+    let (scene, extra) = generate(&a)?;
     let scene = match a.scan {
         Some(frames) => rescan(scene, frames, &a)?,
         None => scene,
@@ -238,6 +141,138 @@ pub fn run(a: SynthArgs, out: &Output) -> Result<()> {
         );
     }
     Ok(())
+}
+
+/// Checks the output paths (not an input, not the same file twice) and `--points`.
+fn check_args(a: &SynthArgs) -> Result<()> {
+    let inputs: Vec<&std::path::Path> = a.model.as_deref().into_iter().collect();
+    check_output(&a.output, &inputs)?;
+    if let Some(truth) = &a.truth {
+        check_output(truth, &inputs)?;
+        if truth == &a.output {
+            bail!("{}: given both as -o and as --truth", truth.display());
+        }
+    }
+    if a.points == Some(0) {
+        bail!("--points must be at least 1");
+    }
+    Ok(())
+}
+
+/// The scene of `a.kind` with its parameters from `a` (the rest per-scene defaults),
+/// and the scene-specific fields of the truth's settings.
+fn generate(a: &SynthArgs) -> Result<(Scene, Value)> {
+    Ok(match a.kind {
+        Kind::Hallway => (hallway(a)?, json!({})),
+        Kind::Pipe => (pipe(a)?, json!({})),
+        Kind::NineCylinders => {
+            if a.mask > 511 {
+                bail!("--mask must be in 0..=511, got {}", a.mask);
+            }
+            (nine_cylinders(a)?, json!({ "mask": a.mask }))
+        }
+        Kind::SixInARow => {
+            let d = synth::SixInARowParams::default();
+            let p = synth::SixInARowParams {
+                points: a.points.unwrap_or(d.points),
+                jitter: a.jitter.unwrap_or(d.jitter),
+                seed: a.seed,
+                ..d
+            };
+            let six = synth::six_in_a_row(&p)?;
+            (six.scene, json!({ "true_index": six.true_index }))
+        }
+        Kind::Registration => (
+            registration(a)?,
+            json!({ "inliers": a.inliers, "outliers": a.outliers,
+                "objects": a.objects, "translation": a.translation }),
+        ),
+    })
+}
+
+/// The noise of `a` (`--jitter`, else `default_jitter`; `--drift`).
+fn noise(a: &SynthArgs, default_jitter: f64) -> Noise {
+    Noise {
+        jitter: a.jitter.unwrap_or(default_jitter),
+        drift: a.drift,
+    }
+}
+
+/// The misalignment against the lattice of `a` (`--offset`, `--angle`).
+fn misalignment(a: &SynthArgs) -> Misalignment {
+    Misalignment {
+        offset: a.offset,
+        angle: a.angle.to_radians(),
+    }
+}
+
+/// The hallway scene of `a` (per-scene defaults for what `a` leaves out).
+fn hallway(a: &SynthArgs) -> Result<Scene> {
+    let d = synth::HallwayParams::default();
+    let p = synth::HallwayParams {
+        length: a.length.unwrap_or(d.length),
+        width: a.width.unwrap_or(d.width),
+        height: a.height.unwrap_or(d.height),
+        side: a.size.unwrap_or(d.side),
+        ceiling: a.ceiling,
+        density: density(a.points, d.density),
+        noise: noise(a, d.noise.jitter),
+        misalignment: misalignment(a),
+        seed: a.seed,
+    };
+    Ok(synth::hallway(&p)?)
+}
+
+/// The pipe scene of `a` (per-scene defaults for what `a` leaves out).
+fn pipe(a: &SynthArgs) -> Result<Scene> {
+    let d = synth::PipeParams::default();
+    let p = synth::PipeParams {
+        segments: a.segments.unwrap_or(d.segments),
+        segment_length: a.size.unwrap_or(d.segment_length),
+        bend: a.bend.or(d.bend),
+        radius: a.radius.or(d.radius),
+        density: density(a.points, d.density),
+        noise: noise(a, d.noise.jitter),
+        misalignment: misalignment(a),
+        seed: a.seed,
+        ..d
+    };
+    Ok(synth::pipe(&p)?)
+}
+
+/// The nine-cylinder scene of `a` (`--mask` already checked).
+fn nine_cylinders(a: &SynthArgs) -> Result<Scene> {
+    let d = synth::NineCylinderParams::default();
+    let p = synth::NineCylinderParams {
+        mask: a.mask,
+        radius: a.radius.unwrap_or(d.radius),
+        density: density(a.points, d.density),
+        noise: noise(a, d.noise.jitter),
+        offset: a.offset,
+        seed: a.seed,
+        ..d
+    };
+    Ok(synth::nine_cylinders(&p)?)
+}
+
+/// The registration scene: `--model` (or the built-in asymmetric object) posed among
+/// uniform outliers.
+fn registration(a: &SynthArgs) -> Result<Scene> {
+    let mesh = match &a.model {
+        Some(path) => MeshShape::new(path.display().to_string(), io::read_mesh(path)?)?,
+        None => synth::asymmetric_object(),
+    };
+    let d = synth::RegistrationParams::default();
+    let p = synth::RegistrationParams {
+        inliers: a.inliers,
+        outliers: a.outliers,
+        objects: a.objects,
+        translation: a.translation,
+        noise: noise(a, d.noise.jitter),
+        seed: a.seed,
+        ..d
+    };
+    Ok(synth::registration(&mesh, &p)?)
 }
 
 /// Replaces the cloud of `scene` by a depth-sensor scan of its truth.

@@ -69,331 +69,24 @@ pub mod icp;
 pub mod particle_filter;
 pub mod vote;
 
+mod options;
+mod report;
+
+pub use options::RegisterOptions;
+pub use report::{FoundObject, Registration};
+
 use std::sync::Arc;
 use std::time::Instant;
 
 use nalgebra::{Point3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
-use serde_json::{Value, json};
 
 use crate::atlas::{MeshShape, Shape};
 use crate::progress::Progress;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 use geometry::DistanceGrid;
-use particle_filter::{Context, RoundStats};
-
-/// Settings of [`register`]. Fractions are of the model size (the diagonal of the mesh's
-/// bounding box, scene units after the pose's scale).
-#[derive(Debug, Clone, PartialEq)]
-pub struct RegisterOptions {
-    /// Estimate the translation (else it is [`RegisterOptions::fixed_translation`]).
-    pub translation: bool,
-    /// The translation when it is not estimated (scene units).
-    pub fixed_translation: Vector3<f64>,
-    /// Estimate a uniform scale within this range (`None` = scale 1).
-    pub scale: Option<(f64, f64)>,
-    /// Find exactly this many objects; `None` = as many as exist (at most `max_objects`).
-    pub count: Option<usize>,
-    /// Upper bound on the objects found automatically.
-    pub max_objects: usize,
-    /// Particles of the first round (drawn from the prior).
-    pub initial_particles: usize,
-    /// Prior draws screened for the first population (see
-    /// [`RegisterOptions::initial_particles`]); `None` = `initial_particles`, or with
-    /// translation search but no votes ([`RegisterOptions::vote_peaks`] = 0), 8 ×
-    /// `initial_particles` (the 6-D prior is far larger). With votes, each draw is a
-    /// rotation (and scale) that gets `vote_peaks` translations.
-    pub screen: Option<usize>,
-    /// Cloud points (a stride subsample) of the screening proxy.
-    pub screen_points: usize,
-    /// With translation search: vote peaks kept per prior rotation of the first
-    /// population ([`vote::vote_translation`]; each becomes a particle with that
-    /// translation); 0 = draw translations from the prior instead.
-    pub vote_peaks: usize,
-    /// With translation votes: the candidates (rotation, vote peak) with the most votes
-    /// that form the first population, each translation refined at point level
-    /// ([`vote::refine_peak`]).
-    pub vote_keep: usize,
-    /// Bin (grid cell) of the translation vote, fraction of the model size.
-    pub vote_bin: f64,
-    /// Spacing of the model samples that vote, fraction of the model size.
-    pub vote_spacing: f64,
-    /// Particles of later rounds.
-    pub particles: usize,
-    /// Round limit per object.
-    pub max_rounds: usize,
-    /// First kernel width, fraction of the model size.
-    pub kernel_start: f64,
-    /// Last kernel width, fraction of the model size.
-    pub kernel_end: f64,
-    /// Kernel factor per round (in (0, 1)).
-    pub kernel_shrink: f64,
-    /// Move spread (σ of the translation; rotation σ = spread / lever arm), as a multiple
-    /// of the kernel width.
-    pub spread: f64,
-    /// Translation moves are `translation_spread` × the spread of surface points under
-    /// the rotation moves (rotations and translations are searched at different rates:
-    /// a wrong rotation can gain a little by sliding, which would drag the population).
-    pub translation_spread: f64,
-    /// Rounds with a stable best pose at the last kernel before stopping.
-    pub settle_rounds: usize,
-    /// Target effective sample size, as a share of the particles (in (0, 1]).
-    pub ess: f64,
-    /// β of the chamfer: candidates kept per point.
-    pub beta: usize,
-    /// Weight of the chamfer's primitive term (its point term has weight 1); `None` =
-    /// calibrated every round so that a typical particle pays what uniform clutter around
-    /// its surface would gain it plus [`RegisterOptions::min_support`] points.
-    pub primitive_weight: Option<f64>,
-    /// Points an object must explain beyond what clutter explains to exist (with the
-    /// calibrated primitive weight): the final existence decision.
-    pub min_support: f64,
-    /// The same, for the primitive weight of the search's measurement (how strongly the
-    /// primitive term — model samples far from any point — counts against a particle).
-    pub search_support: f64,
-    /// Leading particles moved downhill each round by trimmed-ICP steps at the kernel.
-    pub local_moves: usize,
-    /// Leading particles whose approximate symmetry flips ([`symmetry_flips`]: turns by
-    /// π about the model's principal axes) join the next round, each round: a jump
-    /// between the basins a nearly symmetric object leaves in the measurement.
-    pub flip_moves: usize,
-    /// Share of the particles resampled within each other basin of the best particle
-    /// (the basins of its symmetry flips), by the basin's own weights, each round.
-    pub basin_share: f64,
-    /// ICP steps of each such move.
-    pub local_steps: usize,
-    /// Most samples of the outlier primitive.
-    pub max_outlier_samples: usize,
-    /// Translation prior: the model, rotated and scaled, lies inside the scene's bounding
-    /// box, its extents about its centre first multiplied by this (1 = wholly inside;
-    /// less allows objects cut by the box).
-    pub prior_margin: f64,
-    /// Spacing of the particles' template samples, fraction of the model size.
-    pub sample_spacing: f64,
-    /// Refine each pose by trimmed ICP.
-    pub icp: bool,
-    /// Inlier distance: a cloud point within it of a found surface is that object's
-    /// inlier (ICP's last correspondence distance); fraction of the model size.
-    pub inlier_distance: f64,
-    /// Existence threshold of a found object.
-    pub threshold: f64,
-    /// Seed of every random choice.
-    pub seed: u64,
-}
-
-impl Default for RegisterOptions {
-    fn default() -> Self {
-        RegisterOptions {
-            translation: false,
-            fixed_translation: Vector3::zeros(),
-            scale: None,
-            count: None,
-            max_objects: 8,
-            initial_particles: 2000,
-            screen: None,
-            screen_points: 500,
-            vote_peaks: 2,
-            vote_keep: 400,
-            vote_bin: 0.08,
-            vote_spacing: 0.04,
-            particles: 200,
-            max_rounds: 40,
-            kernel_start: 0.08,
-            kernel_end: 0.02,
-            kernel_shrink: 0.85,
-            spread: 0.5,
-            translation_spread: 0.25,
-            settle_rounds: 2,
-            ess: 0.1,
-            beta: 8,
-            primitive_weight: None,
-            min_support: 50.0,
-            search_support: 30.0,
-            local_moves: 8,
-            local_steps: 3,
-            flip_moves: 2,
-            basin_share: 0.1,
-            max_outlier_samples: 200_000,
-            prior_margin: 1.0,
-            sample_spacing: 1.0 / 15.0,
-            icp: true,
-            inlier_distance: 0.01,
-            threshold: 0.5,
-            seed: 0,
-        }
-    }
-}
-
-impl RegisterOptions {
-    /// Checks ranges.
-    pub fn validate(&self) -> Result<()> {
-        let positive = [
-            ("kernel_start", self.kernel_start),
-            ("kernel_end", self.kernel_end),
-            ("spread", self.spread),
-            ("translation_spread", self.translation_spread),
-            ("sample_spacing", self.sample_spacing),
-            ("vote_bin", self.vote_bin),
-            ("vote_spacing", self.vote_spacing),
-            ("inlier_distance", self.inlier_distance),
-        ];
-        for (name, v) in positive {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(Error::invalid(format!("{name} must be positive, got {v}")));
-            }
-        }
-        if !(self.kernel_shrink > 0.0 && self.kernel_shrink < 1.0) {
-            return Err(Error::invalid("kernel_shrink must lie in (0, 1)"));
-        }
-        if !(0.0..=0.3).contains(&self.basin_share) {
-            return Err(Error::invalid("basin_share must lie in [0, 0.3]"));
-        }
-        if !(self.ess > 0.0 && self.ess <= 1.0) {
-            return Err(Error::invalid("ess must lie in (0, 1]"));
-        }
-        if let Some(w) = self.primitive_weight
-            && !(w.is_finite() && w >= 0.0)
-        {
-            return Err(Error::invalid("primitive_weight must be finite and ≥ 0"));
-        }
-        let supports = [self.min_support, self.search_support];
-        if !supports.iter().all(|s| s.is_finite() && *s >= 0.0) {
-            return Err(Error::invalid(
-                "min_support and search_support must be finite and ≥ 0",
-            ));
-        }
-        if !(self.prior_margin.is_finite() && self.prior_margin >= 0.0) {
-            return Err(Error::invalid("prior_margin must be finite and ≥ 0"));
-        }
-        if !(0.0..=1.0).contains(&self.threshold) {
-            return Err(Error::invalid("threshold must lie in [0, 1]"));
-        }
-        if self.initial_particles == 0
-            || self.particles == 0
-            || self.max_rounds == 0
-            || self.vote_keep == 0
-        {
-            return Err(Error::invalid(
-                "particle counts, vote_keep and max_rounds must be at least 1",
-            ));
-        }
-        if self.beta == 0 {
-            return Err(Error::invalid("beta must be at least 1"));
-        }
-        if self.count == Some(0) {
-            return Err(Error::invalid("count must be at least 1"));
-        }
-        if let Some((a, b)) = self.scale
-            && !(a.is_finite() && b.is_finite() && a > 0.0 && a <= b)
-        {
-            return Err(Error::invalid(format!(
-                "scale range ({a}, {b}) must be positive and ordered"
-            )));
-        }
-        if !self.fixed_translation.iter().all(|c| c.is_finite()) {
-            return Err(Error::invalid("fixed_translation must be finite"));
-        }
-        Ok(())
-    }
-
-    /// Prior draws screened for the first population (resolves `screen: None`).
-    pub fn screen_draws(&self) -> usize {
-        self.screen
-            .unwrap_or(if self.translation && self.vote_peaks == 0 {
-                8 * self.initial_particles
-            } else {
-                self.initial_particles
-            })
-    }
-
-    /// The options as JSON (the `settings` of `result.json`).
-    pub fn to_json(&self) -> Value {
-        let t = &self.fixed_translation;
-        json!({
-            "method": "particle_filter",
-            "translation": self.translation,
-            "fixed_translation": if self.translation { Value::Null } else { json!([t.x, t.y, t.z]) },
-            "scale": self.scale.map(|(a, b)| json!([a, b])),
-            "count": self.count,
-            "max_objects": self.max_objects,
-            "initial_particles": self.initial_particles,
-            "screen": self.screen_draws(),
-            "screen_points": self.screen_points,
-            "vote_peaks": self.vote_peaks,
-            "vote_keep": self.vote_keep,
-            "vote_bin": self.vote_bin,
-            "vote_spacing": self.vote_spacing,
-            "particles": self.particles,
-            "max_rounds": self.max_rounds,
-            "kernel_start": self.kernel_start,
-            "kernel_end": self.kernel_end,
-            "kernel_shrink": self.kernel_shrink,
-            "spread": self.spread,
-            "translation_spread": self.translation_spread,
-            "settle_rounds": self.settle_rounds,
-            "ess": self.ess,
-            "beta": self.beta,
-            "primitive_weight": self.primitive_weight,
-            "min_support": self.min_support,
-            "search_support": self.search_support,
-            "local_moves": self.local_moves,
-            "local_steps": self.local_steps,
-            "flip_moves": self.flip_moves,
-            "basin_share": self.basin_share,
-            "prior_margin": self.prior_margin,
-            "sample_spacing": self.sample_spacing,
-            "icp": self.icp,
-            "inlier_distance": self.inlier_distance,
-            "threshold": self.threshold,
-            "seed": self.seed,
-        })
-    }
-}
-
-/// One object found by [`register`].
-#[derive(Debug, Clone)]
-pub struct FoundObject {
-    /// The posed mesh.
-    pub primitive: Primitive,
-    /// Its existence probability in the final chamfer solve.
-    pub existence: f64,
-    /// Share of all cloud points within the inlier distance of its surface (0‥1).
-    pub inlier_share: f64,
-    /// RMS surface distance of those inliers (scene units).
-    pub rms: f64,
-    /// The filter's pose before ICP.
-    pub filter_pose: Pose,
-    /// Per-round statistics of its search.
-    pub rounds: Vec<RoundStats>,
-}
-
-/// The result of [`register`].
-#[derive(Debug, Clone)]
-pub struct Registration {
-    /// Objects found, in the order found (the strongest first).
-    pub objects: Vec<FoundObject>,
-    /// Model size used for the relative settings (scene units, scale 1).
-    pub model_size: f64,
-    /// Wall time (seconds).
-    pub seconds: f64,
-}
-
-impl Registration {
-    /// `result.json` (DESIGN §3): one `"type": "mesh"` entry per object found, with its
-    /// pose, `existence` and `inlier_share`.
-    pub fn to_json(&self, settings: Value, metrics: Value) -> Value {
-        let prims: Vec<Primitive> = self.objects.iter().map(|o| o.primitive.clone()).collect();
-        let existence: Vec<f64> = self.objects.iter().map(|o| o.existence).collect();
-        let mut doc = crate::fit::result_json(settings, metrics, &prims, &existence);
-        if let Some(list) = doc["primitives"].as_array_mut() {
-            for (v, o) in list.iter_mut().zip(&self.objects) {
-                v["inlier_share"] = json!(o.inlier_share);
-            }
-        }
-        doc
-    }
-}
+use particle_filter::{Context, FilterResult};
 
 /// The search context of [`register`] and the model's symmetry flips.
 fn context<'a>(
@@ -527,103 +220,19 @@ pub fn register(
 ) -> Result<Registration> {
     let start = Instant::now();
     let (context, flips) = context(cloud, mesh, options)?;
-    let (grid, size, shape) = (context.grid.clone(), context.size, context.shape.clone());
-    let largest_scale = options.scale.map_or(1.0, |s| s.1);
+    let size = context.size;
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let wanted = options.count.unwrap_or(options.max_objects);
     progress.start("register", (wanted * options.max_rounds) as u64);
     let mut objects: Vec<FoundObject> = Vec::new();
-    let inlier_distance = options.inlier_distance * size;
     for _ in 0..wanted {
         let found: Vec<Pose> = objects.iter().map(|o| o.primitive.pose).collect();
         let filtered = context.run(&found, &mut rng, progress)?;
-        let scale = filtered.pose.scale;
-        let kernel = options.kernel_end * size * scale;
-        let freedom = context.freedom();
-        // Approximate symmetries: also try the pose turned by π about each principal axis
-        // of the model (through the rotation pivot), each polished by ICP at the kernel.
-        let settle = icp::IcpOptions {
-            start_distance: options.kernel_start * size * scale,
-            min_distance: kernel,
-            shrink: 0.8,
-            max_iterations: 15,
-            tolerance: 1e-6 * size * scale,
-            scale_range: options.scale,
-        };
-        let tries: Vec<Pose> = flips
-            .iter()
-            .enumerate()
-            .map(|(k, f)| {
-                let p = match k
-                    .checked_sub(1)
-                    .and_then(|b| filtered.basins.get(b).copied().flatten())
-                {
-                    Some(b) => b,
-                    None => filtered.pose.compose(f),
-                };
-                if options.icp {
-                    icp::refine(mesh, &grid, &cloud.points, p, freedom, &settle).pose
-                } else {
-                    p
-                }
-            })
-            .collect();
-        let m = context.measure(
-            &found,
-            tries.clone(),
-            kernel,
-            options.search_support,
-            false,
-            &mut rng,
-        )?;
-        let pick = (0..tries.len())
-            .max_by(|&a, &b| m.score[a].total_cmp(&m.score[b]).then(b.cmp(&a)))
-            .unwrap_or(0);
-
-        let chosen = tries[pick];
-        let refined = icp::refine(
-            mesh,
-            &grid,
-            &cloud.points,
-            chosen,
-            if options.icp {
-                freedom
-            } else {
-                icp::Freedom {
-                    translation: false,
-                    scale: false,
-                }
-            },
-            &icp::IcpOptions {
-                start_distance: kernel,
-                min_distance: inlier_distance * scale,
-                shrink: 0.8,
-                max_iterations: if options.icp { 60 } else { 0 },
-                tolerance: 1e-6 * size * largest_scale,
-                scale_range: options.scale,
-            },
-        );
-        // Existence of the new object next to the outlier primitive and those found.
-        let m = context.measure(
-            &found,
-            vec![refined.pose],
-            kernel,
-            options.min_support,
-            true,
-            &mut rng,
-        )?;
-        let existence = m.existence[0];
-        if options.count.is_none() && existence < options.threshold {
+        let object = settle_object(&context, cloud, mesh, &flips, &found, filtered, &mut rng)?;
+        if options.count.is_none() && object.existence < options.threshold {
             break;
         }
-        objects.push(FoundObject {
-            primitive: Primitive::new(shape.clone(), refined.pose),
-            existence,
-            inlier_share: refined.inliers.len() as f64 / cloud.len() as f64,
-            rms: refined.rms,
-            filter_pose: filtered.pose,
-            rounds: filtered.rounds,
-        });
+        objects.push(object);
     }
     progress.finish();
     // Final joint existence of everything found.
@@ -640,6 +249,135 @@ pub fn register(
         model_size: size,
         seconds: start.elapsed().as_secs_f64(),
     })
+}
+
+/// The object the filter's answer `filtered` stands for, next to those `found`: the
+/// best of its symmetry tries ([`symmetry_tries`]) by the measurement at the last
+/// kernel, refined by trimmed ICP against the exact surface ([`refine_object`]), with
+/// its existence in a polished chamfer solve over the outlier primitive, `found` and it.
+fn settle_object(
+    context: &Context,
+    cloud: &PointCloud,
+    mesh: &MeshShape,
+    flips: &[Pose],
+    found: &[Pose],
+    filtered: FilterResult,
+    rng: &mut ChaCha8Rng,
+) -> Result<FoundObject> {
+    let options = context.options;
+    let scale = filtered.pose.scale;
+    let kernel = options.kernel_end * context.size * scale;
+    let tries = symmetry_tries(context, cloud, mesh, flips, &filtered);
+    let m = context.measure(
+        found,
+        tries.clone(),
+        kernel,
+        options.search_support,
+        false,
+        rng,
+    )?;
+    let pick = (0..tries.len())
+        .max_by(|&a, &b| m.score[a].total_cmp(&m.score[b]).then(b.cmp(&a)))
+        .unwrap_or(0);
+    let refined = refine_object(context, cloud, mesh, tries[pick], kernel, scale);
+    // Existence of the new object next to the outlier primitive and those found.
+    let m = context.measure(
+        found,
+        vec![refined.pose],
+        kernel,
+        options.min_support,
+        true,
+        rng,
+    )?;
+    Ok(FoundObject {
+        primitive: Primitive::new(context.shape.clone(), refined.pose),
+        existence: m.existence[0],
+        inlier_share: refined.inliers.len() as f64 / cloud.len() as f64,
+        rms: refined.rms,
+        filter_pose: filtered.pose,
+        rounds: filtered.rounds,
+    })
+}
+
+/// Approximate symmetries: the filter's best pose turned by π about each principal
+/// axis of the model (through the rotation pivot) — or where the filter kept a particle
+/// in that basin, its best there — each polished by ICP at the kernel (with
+/// [`RegisterOptions::icp`]); the first is the best pose itself.
+fn symmetry_tries(
+    context: &Context,
+    cloud: &PointCloud,
+    mesh: &MeshShape,
+    flips: &[Pose],
+    filtered: &FilterResult,
+) -> Vec<Pose> {
+    let options = context.options;
+    let (size, scale) = (context.size, filtered.pose.scale);
+    let freedom = context.freedom();
+    let settle = icp::IcpOptions {
+        start_distance: options.kernel_start * size * scale,
+        min_distance: options.kernel_end * size * scale,
+        shrink: 0.8,
+        max_iterations: 15,
+        tolerance: 1e-6 * size * scale,
+        scale_range: options.scale,
+    };
+    flips
+        .iter()
+        .enumerate()
+        .map(|(k, f)| {
+            let p = match k
+                .checked_sub(1)
+                .and_then(|b| filtered.basins.get(b).copied().flatten())
+            {
+                Some(b) => b,
+                None => filtered.pose.compose(f),
+            };
+            if options.icp {
+                icp::refine(mesh, &context.grid, &cloud.points, p, freedom, &settle).pose
+            } else {
+                p
+            }
+        })
+        .collect()
+}
+
+/// `chosen` refined by trimmed ICP against the exact mesh surface, from the kernel
+/// `kernel` down to the inlier distance (at the pose's `scale`); without
+/// [`RegisterOptions::icp`], no steps: only its inliers and RMS.
+fn refine_object(
+    context: &Context,
+    cloud: &PointCloud,
+    mesh: &MeshShape,
+    chosen: Pose,
+    kernel: f64,
+    scale: f64,
+) -> icp::IcpResult {
+    let options = context.options;
+    let size = context.size;
+    let largest_scale = options.scale.map_or(1.0, |s| s.1);
+    let inlier_distance = options.inlier_distance * size;
+    icp::refine(
+        mesh,
+        &context.grid,
+        &cloud.points,
+        chosen,
+        if options.icp {
+            context.freedom()
+        } else {
+            icp::Freedom {
+                translation: false,
+                scale: false,
+            }
+        },
+        &icp::IcpOptions {
+            start_distance: kernel,
+            min_distance: inlier_distance * scale,
+            shrink: 0.8,
+            max_iterations: if options.icp { 60 } else { 0 },
+            tolerance: 1e-6 * size * largest_scale,
+            scale_range: options.scale,
+        },
+    )
 }
 
 /// The identity and the turns by π about the three principal axes of `samples` (local

@@ -170,7 +170,6 @@ pub fn vote_translation(
     peaks: usize,
     steps: usize,
 ) -> Vec<VotePeak> {
-    let c = index.cell;
     if peaks == 0
         || index.is_empty()
         || !lo.iter().chain(hi.iter()).all(|v| v.is_finite())
@@ -178,164 +177,19 @@ pub fn vote_translation(
     {
         return Vec::new();
     }
-    // The model's cell counts (cell w holds the offsets in [w c, (w + 1) c)).
-    let mut cells: Vec<[i64; 3]> = offsets
-        .iter()
-        .filter(|o| o.iter().all(|v| v.is_finite() && v.abs() < 1e15 * c))
-        .map(|o| [0, 1, 2].map(|a| (o[a] / c).floor() as i64))
-        .collect();
-    if cells.is_empty() {
+    let model = model_cells(offsets, index.cell);
+    if model.is_empty() {
         return Vec::new();
     }
-    cells.sort_unstable();
-    let mut model: Vec<([i64; 3], f32)> = Vec::new();
-    for w in cells {
-        match model.last_mut() {
-            Some((last, n)) if *last == w => *n += 1.0,
-            _ => model.push((w, 1.0)),
-        }
-    }
-    // Bins u (translation ≈ index.lo + u c) of the domain, one spare on each side, and
-    // only those some (scene cell, model cell) pair reaches.
-    let (wlo, whi) = model
-        .iter()
-        .fold(([i64::MAX; 3], [i64::MIN; 3]), |(l, h), (w, _)| {
-            (
-                [0, 1, 2].map(|a| l[a].min(w[a])),
-                [0, 1, 2].map(|a| h[a].max(w[a])),
-            )
-        });
-    let mut ulo = [0i64; 3];
-    let mut dims = [0usize; 3];
-    for a in 0..3 {
-        let from = ((lo[a] - index.lo[a]) / c).floor().max(-1e15) as i64 - 1;
-        let to = ((hi[a] - index.lo[a]) / c).ceil().min(1e15) as i64 + 1;
-        let (from, to) = (from.max(-whi[a]), to.min(index.dims[a] as i64 - 1 - wlo[a]));
-        if from > to {
-            return Vec::new();
-        }
-        ulo[a] = from;
-        dims[a] = (to - from + 1) as usize;
-    }
-    if dims
-        .iter()
-        .try_fold(1usize, |p, &d| p.checked_mul(d))
-        .is_none_or(|n| n > MAX_BINS)
-    {
+    let Some(bins) = HistogramBins::new(index, &model, lo, hi) else {
         return Vec::new();
-    }
-    let (nx, nxy) = (dims[0], dims[0] * dims[1]);
-    let mut hist = vec![0.0f32; nxy * dims[2]];
-    let (sx, sxy) = (index.dims[0], index.dims[0] * index.dims[1]);
-    for (w, m) in &model {
-        // Scene cells v = u + w for the bins u of the histogram.
-        let range = |a: usize| {
-            let from = (ulo[a] + w[a]).max(0);
-            let to = (ulo[a] + dims[a] as i64 - 1 + w[a]).min(index.dims[a] as i64 - 1);
-            (from, to)
-        };
-        let (x, y, z) = (range(0), range(1), range(2));
-        if x.0 > x.1 || y.0 > y.1 || z.0 > z.1 {
-            continue;
-        }
-        let len = (x.1 - x.0 + 1) as usize;
-        for vz in z.0..=z.1 {
-            for vy in y.0..=y.1 {
-                let src = x.0 as usize + sx * vy as usize + sxy * vz as usize;
-                let dst = (x.0 - w[0] - ulo[0]) as usize
-                    + nx * (vy - w[1] - ulo[1]) as usize
-                    + nxy * (vz - w[2] - ulo[2]) as usize;
-                for (h, n) in hist[dst..dst + len]
-                    .iter_mut()
-                    .zip(&index.count[src..src + len])
-                {
-                    *h += n * m;
-                }
-            }
-        }
-    }
-    // 3 × 3 × 3 window sums (separable box filter).
-    let mut window = hist.clone();
-    for (axis, stride) in [(0, 1), (1, nx), (2, nxy)] {
-        let src = window.clone();
-        for (k, out) in window.iter_mut().enumerate() {
-            let i = (k / stride) % dims[axis];
-            let mut v = src[k];
-            if i > 0 {
-                v += src[k - stride];
-            }
-            if i + 1 < dims[axis] {
-                v += src[k + stride];
-            }
-            *out = v;
-        }
-    }
-    let mut order: Vec<(f32, usize)> = window
-        .iter()
-        .enumerate()
-        .filter(|(_, v)| **v > 0.0)
-        .map(|(k, v)| (*v, k))
-        .collect();
-    let keep = (64 * peaks).max(64);
-    let by_votes = |a: &(f32, usize), b: &(f32, usize)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
-    if order.len() > keep {
-        order.select_nth_unstable_by(keep - 1, by_votes);
-        order.truncate(keep);
-    }
-    order.sort_unstable_by(by_votes);
-    let bin_of = |k: usize| [k % nx, (k / nx) % dims[1], k / nxy].map(|v| v as i64);
-    let mut picked: Vec<([i64; 3], f32)> = Vec::with_capacity(peaks);
-    for &(v, k) in &order {
-        if picked.len() == peaks {
-            break;
-        }
-        let b = bin_of(k);
-        if picked
-            .iter()
-            .all(|(p, _)| (0..3).any(|a| (p[a] - b[a]).abs() >= 3))
-        {
-            picked.push((b, v));
-        }
-    }
-    picked
+    };
+    let hist = bins.accumulate(index, &model);
+    let window = bins.window_sums(&hist);
+    bins.pick_peaks(&window, peaks)
         .into_iter()
         .map(|(b, votes)| {
-            // The window's bins, weighted by their votes above the window's least (the
-            // outliers' votes are about uniform over a window; left in, they would pull
-            // the mean to the peak bin's centre).
-            let mut bins = Vec::with_capacity(27);
-            for dz in -1..=1i64 {
-                for dy in -1..=1i64 {
-                    for dx in -1..=1i64 {
-                        let q = [b[0] + dx, b[1] + dy, b[2] + dz];
-                        if (0..3).all(|a| q[a] >= 0 && q[a] < dims[a] as i64) {
-                            let h = hist[q[0] as usize + nx * q[1] as usize + nxy * q[2] as usize];
-                            bins.push((q, h as f64));
-                        }
-                    }
-                }
-            }
-            let floor = bins.iter().map(|q| q.1).fold(f64::INFINITY, f64::min);
-
-            let (mut sum, mut weight) = (Vector3::zeros(), 0.0);
-            for (q, h) in &bins {
-                let u = Vector3::new(
-                    (q[0] + ulo[0]) as f64,
-                    (q[1] + ulo[1]) as f64,
-                    (q[2] + ulo[2]) as f64,
-                );
-                sum += u * (h - floor);
-                weight += h - floor;
-            }
-            if weight <= 0.0 {
-                sum = Vector3::new(
-                    (b[0] + ulo[0]) as f64,
-                    (b[1] + ulo[1]) as f64,
-                    (b[2] + ulo[2]) as f64,
-                );
-                weight = 1.0;
-            }
-            let mut translation = index.lo.coords + sum / weight * c;
+            let mut translation = index.lo.coords + bins.peak_mean(&hist, b) * index.cell;
             if steps > 0 {
                 translation = refine_peak(index, offsets, translation, steps);
             }
@@ -345,6 +199,215 @@ pub fn vote_translation(
             }
         })
         .collect()
+}
+
+/// The model's cell counts: cell `w` (of side `c`) holds the offsets in
+/// `[w c, (w + 1) c)`; sorted by cell, non-finite or huge offsets left out.
+fn model_cells(offsets: &[Vector3<f64>], c: f64) -> Vec<([i64; 3], f32)> {
+    let mut cells: Vec<[i64; 3]> = offsets
+        .iter()
+        .filter(|o| o.iter().all(|v| v.is_finite() && v.abs() < 1e15 * c))
+        .map(|o| [0, 1, 2].map(|a| (o[a] / c).floor() as i64))
+        .collect();
+    cells.sort_unstable();
+    let mut model: Vec<([i64; 3], f32)> = Vec::new();
+    for w in cells {
+        match model.last_mut() {
+            Some((last, n)) if *last == w => *n += 1.0,
+            _ => model.push((w, 1.0)),
+        }
+    }
+    model
+}
+
+/// The translation histogram's bins: bin `u` (translation ≈ `index.lo + (ulo + u) c`)
+/// for `u` in `0..dims`, row-major with x fastest.
+struct HistogramBins {
+    /// The first bin's cell offset from the index's corner.
+    ulo: [i64; 3],
+    /// Bins along each axis.
+    dims: [usize; 3],
+}
+
+impl HistogramBins {
+    /// The bins of the domain `[lo, hi]`, one spare on each side, and only those some
+    /// (scene cell, model cell) pair reaches; `None` when there are none or more than
+    /// [`MAX_BINS`].
+    fn new(
+        index: &VoteIndex,
+        model: &[([i64; 3], f32)],
+        lo: &Point3<f64>,
+        hi: &Point3<f64>,
+    ) -> Option<Self> {
+        let c = index.cell;
+        let (wlo, whi) = model
+            .iter()
+            .fold(([i64::MAX; 3], [i64::MIN; 3]), |(l, h), (w, _)| {
+                (
+                    [0, 1, 2].map(|a| l[a].min(w[a])),
+                    [0, 1, 2].map(|a| h[a].max(w[a])),
+                )
+            });
+        let mut ulo = [0i64; 3];
+        let mut dims = [0usize; 3];
+        for a in 0..3 {
+            let from = ((lo[a] - index.lo[a]) / c).floor().max(-1e15) as i64 - 1;
+            let to = ((hi[a] - index.lo[a]) / c).ceil().min(1e15) as i64 + 1;
+            let (from, to) = (from.max(-whi[a]), to.min(index.dims[a] as i64 - 1 - wlo[a]));
+            if from > to {
+                return None;
+            }
+            ulo[a] = from;
+            dims[a] = (to - from + 1) as usize;
+        }
+        if dims
+            .iter()
+            .try_fold(1usize, |p, &d| p.checked_mul(d))
+            .is_none_or(|n| n > MAX_BINS)
+        {
+            return None;
+        }
+        Some(HistogramBins { ulo, dims })
+    }
+
+    /// Bins of one z layer and of one xy row.
+    fn strides(&self) -> (usize, usize) {
+        (self.dims[0], self.dims[0] * self.dims[1])
+    }
+
+    /// The votes of every bin: each (scene cell, model cell) pair adds the scene cell's
+    /// points × the model cell's samples to the bin of their difference.
+    fn accumulate(&self, index: &VoteIndex, model: &[([i64; 3], f32)]) -> Vec<f32> {
+        let (ulo, dims) = (self.ulo, self.dims);
+        let (nx, nxy) = self.strides();
+        let mut hist = vec![0.0f32; nxy * dims[2]];
+        let (sx, sxy) = (index.dims[0], index.dims[0] * index.dims[1]);
+        for (w, m) in model {
+            // Scene cells v = u + w for the bins u of the histogram.
+            let range = |a: usize| {
+                let from = (ulo[a] + w[a]).max(0);
+                let to = (ulo[a] + dims[a] as i64 - 1 + w[a]).min(index.dims[a] as i64 - 1);
+                (from, to)
+            };
+            let (x, y, z) = (range(0), range(1), range(2));
+            if x.0 > x.1 || y.0 > y.1 || z.0 > z.1 {
+                continue;
+            }
+            let len = (x.1 - x.0 + 1) as usize;
+            for vz in z.0..=z.1 {
+                for vy in y.0..=y.1 {
+                    let src = x.0 as usize + sx * vy as usize + sxy * vz as usize;
+                    let dst = (x.0 - w[0] - ulo[0]) as usize
+                        + nx * (vy - w[1] - ulo[1]) as usize
+                        + nxy * (vz - w[2] - ulo[2]) as usize;
+                    for (h, n) in hist[dst..dst + len]
+                        .iter_mut()
+                        .zip(&index.count[src..src + len])
+                    {
+                        *h += n * m;
+                    }
+                }
+            }
+        }
+        hist
+    }
+
+    /// 3 × 3 × 3 window sums of `hist` (separable box filter).
+    fn window_sums(&self, hist: &[f32]) -> Vec<f32> {
+        let (nx, nxy) = self.strides();
+        let mut window = hist.to_vec();
+        for (axis, stride) in [(0, 1), (1, nx), (2, nxy)] {
+            let src = window.clone();
+            for (k, out) in window.iter_mut().enumerate() {
+                let i = (k / stride) % self.dims[axis];
+                let mut v = src[k];
+                if i > 0 {
+                    v += src[k - stride];
+                }
+                if i + 1 < self.dims[axis] {
+                    v += src[k + stride];
+                }
+                *out = v;
+            }
+        }
+        window
+    }
+
+    /// Up to `peaks` bins with the most window votes (ties: lowest bin first), each at
+    /// least 3 bins along some axis from those picked before, with their window votes.
+    fn pick_peaks(&self, window: &[f32], peaks: usize) -> Vec<([i64; 3], f32)> {
+        let (nx, nxy) = self.strides();
+        let mut order: Vec<(f32, usize)> = window
+            .iter()
+            .enumerate()
+            .filter(|(_, v)| **v > 0.0)
+            .map(|(k, v)| (*v, k))
+            .collect();
+        let keep = (64 * peaks).max(64);
+        let by_votes = |a: &(f32, usize), b: &(f32, usize)| b.0.total_cmp(&a.0).then(a.1.cmp(&b.1));
+        if order.len() > keep {
+            order.select_nth_unstable_by(keep - 1, by_votes);
+            order.truncate(keep);
+        }
+        order.sort_unstable_by(by_votes);
+        let bin_of = |k: usize| [k % nx, (k / nx) % self.dims[1], k / nxy].map(|v| v as i64);
+        let mut picked: Vec<([i64; 3], f32)> = Vec::with_capacity(peaks);
+        for &(v, k) in &order {
+            if picked.len() == peaks {
+                break;
+            }
+            let b = bin_of(k);
+            if picked
+                .iter()
+                .all(|(p, _)| (0..3).any(|a| (p[a] - b[a]).abs() >= 3))
+            {
+                picked.push((b, v));
+            }
+        }
+        picked
+    }
+
+    /// The mean cell offset (from the index's corner, in cells) of the 3 × 3 × 3 window
+    /// about bin `b`, its bins weighted by their votes above the window's least (the
+    /// outliers' votes are about uniform over a window; left in, they would pull the
+    /// mean to the peak bin's centre); bin `b` itself when the window is flat.
+    fn peak_mean(&self, hist: &[f32], b: [i64; 3]) -> Vector3<f64> {
+        let (ulo, dims) = (self.ulo, self.dims);
+        let (nx, nxy) = self.strides();
+        let mut bins = Vec::with_capacity(27);
+        for dz in -1..=1i64 {
+            for dy in -1..=1i64 {
+                for dx in -1..=1i64 {
+                    let q = [b[0] + dx, b[1] + dy, b[2] + dz];
+                    if (0..3).all(|a| q[a] >= 0 && q[a] < dims[a] as i64) {
+                        let h = hist[q[0] as usize + nx * q[1] as usize + nxy * q[2] as usize];
+                        bins.push((q, h as f64));
+                    }
+                }
+            }
+        }
+        let floor = bins.iter().map(|q| q.1).fold(f64::INFINITY, f64::min);
+
+        let (mut sum, mut weight) = (Vector3::zeros(), 0.0);
+        for (q, h) in &bins {
+            let u = Vector3::new(
+                (q[0] + ulo[0]) as f64,
+                (q[1] + ulo[1]) as f64,
+                (q[2] + ulo[2]) as f64,
+            );
+            sum += u * (h - floor);
+            weight += h - floor;
+        }
+        if weight <= 0.0 {
+            sum = Vector3::new(
+                (b[0] + ulo[0]) as f64,
+                (b[1] + ulo[1]) as f64,
+                (b[2] + ulo[2]) as f64,
+            );
+            weight = 1.0;
+        }
+        sum / weight
+    }
 }
 
 /// `start` (about one cell of `index` from a peak of the votes, as [`vote_translation`]
@@ -495,112 +558,4 @@ pub fn mean_shift(
 }
 
 #[cfg(test)]
-mod tests {
-    use super::*;
-    use crate::atlas::Shape;
-    use crate::register::particle_filter::random_rotation;
-    use crate::synth::{RegistrationParams, asymmetric_object, registration};
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
-
-    /// With the true rotation, the best peak of a vote over the whole scene box is
-    /// within 4 % of the model size of the true translation (half a vote cell), 2 % on
-    /// average, for 100 object points among 1900 uniform outliers (the grid and samples
-    /// of the filter's defaults); and the
-    /// votes rank rotations: the true one's peak beats that of 3 in 4 random rotations.
-    #[test]
-    fn the_vote_peak_recovers_a_known_translation_at_95_percent_outliers() {
-        let mesh = asymmetric_object();
-        let (lo, hi) = crate::cloud::bounds_of(&mesh.mesh.vertices).unwrap();
-        let size = (hi - lo).norm();
-        let d = crate::register::RegisterOptions::default();
-        let samples = Shape::Mesh(mesh.clone()).sample_surface(d.vote_spacing * size);
-        let rotate = |r: &nalgebra::UnitQuaternion<f64>| -> Vec<Vector3<f64>> {
-            samples.iter().map(|m| r * m.coords).collect()
-        };
-        let mut total = 0.0;
-        for seed in 0..6 {
-            let scene = registration(
-                &mesh,
-                &RegistrationParams {
-                    inliers: 100,
-                    outliers: 1900,
-                    translation: 0.25 * size,
-                    seed,
-                    ..Default::default()
-                },
-            )
-            .unwrap();
-            let truth = scene.truth[0].pose;
-            let index = VoteIndex::new(&scene.cloud.points, d.vote_bin * size);
-            // Domain: every translation that keeps the model's origin in the scene box.
-            let (slo, shi) = crate::cloud::bounds_of(&scene.cloud.points).unwrap();
-            let peaks = vote_translation(&index, &rotate(&truth.rotation), &slo, &shi, 2, 2);
-            assert_eq!(peaks.len(), 2);
-            let err = (peaks[0].translation - truth.translation).norm() / size;
-            let mut rng = ChaCha8Rng::seed_from_u64(seed);
-            let beaten = (0..40)
-                .filter(|_| {
-                    let wrong = random_rotation(&mut rng);
-                    let bad = vote_translation(&index, &rotate(&wrong), &slo, &shi, 1, 0);
-                    bad[0].votes < peaks[0].votes
-                })
-                .count();
-            println!(
-                "seed {seed}: error {:.2} %, votes {:?}, beats {beaten}/40 random rotations",
-                100.0 * err,
-                peaks.iter().map(|p| p.votes).collect::<Vec<_>>()
-            );
-            assert!(
-                err < 0.04,
-                "seed {seed}: error {:.2} % of the size",
-                100.0 * err
-            );
-            total += err;
-            assert!(beaten >= 30, "seed {seed}: beats only {beaten}/40");
-        }
-        assert!(
-            total / 6.0 < 0.02,
-            "mean error {:.2} %",
-            100.0 * total / 6.0
-        );
-    }
-
-    #[test]
-    fn bad_input_gives_no_peaks() {
-        let points = vec![Point3::new(0.0, 0.0, 0.0), Point3::new(f64::NAN, 0.0, 0.0)];
-        let index = VoteIndex::new(&points, 0.1);
-        assert_eq!(index.len(), 1);
-        let o = [Vector3::zeros()];
-        let (lo, hi) = (Point3::new(-1.0, -1.0, -1.0), Point3::new(1.0, 1.0, 1.0));
-        let p = vote_translation(&index, &o, &lo, &hi, 2, 1);
-        assert_eq!(p.len(), 1);
-        assert!(p[0].translation.norm() < 1e-9, "{p:?}");
-        assert!(vote_translation(&index, &o, &hi, &lo, 2, 1).is_empty());
-        assert!(vote_translation(&index, &[], &lo, &hi, 2, 1).is_empty());
-        let nan = [Vector3::repeat(f64::NAN)];
-        assert!(vote_translation(&index, &nan, &lo, &hi, 2, 1).is_empty());
-        let inf = Point3::new(f64::INFINITY, 0.0, 0.0);
-        assert!(vote_translation(&index, &o, &lo, &inf, 2, 1).is_empty());
-        assert!(vote_translation(&index, &o, &lo, &hi, 0, 1).is_empty());
-        let empty = VoteIndex::new(&[], 0.1);
-        assert!(empty.is_empty());
-        assert!(vote_translation(&empty, &o, &lo, &hi, 2, 1).is_empty());
-        for cell in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-            let index = VoteIndex::new(&points, cell);
-            assert_eq!(vote_translation(&index, &o, &lo, &hi, 1, 1).len(), 1);
-        }
-        // A huge domain is clipped to the translations the points can vote for.
-        let (big_lo, big_hi) = (
-            Point3::new(-1e300, -1e6, -1e6),
-            Point3::new(1e300, 1e6, 1e6),
-        );
-        let p = vote_translation(&index, &o, &big_lo, &big_hi, 1, 1);
-        assert_eq!(p.len(), 1);
-        assert!(p[0].translation.norm() < 1e-9);
-        assert_eq!(
-            mean_shift(&index, &o, Vector3::zeros(), f64::NAN, 3).votes,
-            0.0
-        );
-    }
-}
+mod tests;

@@ -1,0 +1,51 @@
+//! What a registration found ([`Registration`], one [`FoundObject`] per object) and its
+//! `result.json`.
+
+use serde_json::{Value, json};
+
+use super::particle_filter::RoundStats;
+use crate::{Pose, Primitive};
+
+/// One object found by [`register`](super::register).
+#[derive(Debug, Clone)]
+pub struct FoundObject {
+    /// The posed mesh.
+    pub primitive: Primitive,
+    /// Its existence probability in the final chamfer solve.
+    pub existence: f64,
+    /// Share of all cloud points within the inlier distance of its surface (0‥1).
+    pub inlier_share: f64,
+    /// RMS surface distance of those inliers (scene units).
+    pub rms: f64,
+    /// The filter's pose before ICP.
+    pub filter_pose: Pose,
+    /// Per-round statistics of its search.
+    pub rounds: Vec<RoundStats>,
+}
+
+/// The result of [`register`](super::register).
+#[derive(Debug, Clone)]
+pub struct Registration {
+    /// Objects found, in the order found (the strongest first).
+    pub objects: Vec<FoundObject>,
+    /// Model size used for the relative settings (scene units, scale 1).
+    pub model_size: f64,
+    /// Wall time (seconds).
+    pub seconds: f64,
+}
+
+impl Registration {
+    /// `result.json` (DESIGN §3): one `"type": "mesh"` entry per object found, with its
+    /// pose, `existence` and `inlier_share`.
+    pub fn to_json(&self, settings: Value, metrics: Value) -> Value {
+        let prims: Vec<Primitive> = self.objects.iter().map(|o| o.primitive.clone()).collect();
+        let existence: Vec<f64> = self.objects.iter().map(|o| o.existence).collect();
+        let mut doc = crate::fit::result_json(settings, metrics, &prims, &existence);
+        if let Some(list) = doc["primitives"].as_array_mut() {
+            for (v, o) in list.iter_mut().zip(&self.objects) {
+                v["inlier_share"] = json!(o.inlier_share);
+            }
+        }
+        doc
+    }
+}
