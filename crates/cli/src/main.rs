@@ -4,6 +4,7 @@
 //! 2 the command line itself is malformed (clap).
 
 mod commands;
+mod errors;
 mod progress;
 
 use std::process::ExitCode;
@@ -65,24 +66,8 @@ fn main() -> ExitCode {
     match result {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
-            eprintln!("error: {}", one_line(&e));
+            eprintln!("error: {}", errors::one_line(&e));
             ExitCode::FAILURE
         }
     }
-}
-
-/// The whole cause chain on one line, without a backtrace. A cause whose text its
-/// parent already shows (library errors print their source) is not repeated.
-fn one_line(e: &anyhow::Error) -> String {
-    let mut out = String::new();
-    for cause in e.chain() {
-        let text = cause.to_string();
-        if !out.contains(&text) {
-            if !out.is_empty() {
-                out.push_str(": ");
-            }
-            out.push_str(&text);
-        }
-    }
-    out.split_whitespace().collect::<Vec<_>>().join(" ")
 }

@@ -592,7 +592,7 @@ fn bad_flags_fail_with_one_line_naming_the_flag_and_write_nothing() {
         (vec!["--sample-spacing", "1e-9"], "--sample-spacing"),
         (vec!["--types", "sphere", "--size", "1e-12"], "--spacing"),
         (vec!["--cap", "-1"], "--cap"),
-        (vec!["--weights", "1,nan"], "weight"),
+        (vec!["--weights", "1,nan"], "--weights"),
         (vec!["--origin", "1e15,0,0"], "--origin"),
         (vec!["--method", "mcmc"], "mcmc"),
     ];
@@ -625,7 +625,7 @@ fn bad_flags_fail_with_one_line_naming_the_flag_and_write_nothing() {
     fails(
         &dir,
         &["synth", "hallway", "-o", "s.ply", "--size", "-1"],
-        "side",
+        "--size",
     );
     fails(
         &dir,
@@ -635,12 +635,17 @@ fn bad_flags_fail_with_one_line_naming_the_flag_and_write_nothing() {
     fails(
         &dir,
         &["synth", "pipe", "-o", "s.ply", "--points", "100000000000"],
-        "points",
+        "--points",
     );
     fails(
         &dir,
         &["synth", "pipe", "-o", "s.ply", "--jitter", "nan"],
-        "jitter",
+        "--jitter",
+    );
+    fails(
+        &dir,
+        &["synth", "pipe", "-o", "s.ply", "--segments", "0"],
+        "--segments must be at least 1",
     );
     assert!(!dir.join("s.ply").exists());
     fs::write(dir.join("broken.json"), "{\"primitives\": [").expect("write");
@@ -648,6 +653,12 @@ fn bad_flags_fail_with_one_line_naming_the_flag_and_write_nothing() {
     fails(&dir, &["eval", "scene.ply", "missing.json"], "missing.json");
     fails(&dir, &["eval", "scene.ply", "broken.json"], "broken.json");
     fails(&dir, &["eval", "scene.ply", "noprims.json"], "noprims.json");
+    fs::write(dir.join("none.json"), "{\"primitives\": []}").expect("write");
+    fails(
+        &dir,
+        &["eval", "scene.ply", "none.json", "--tau", "-1"],
+        "--tau must be finite",
+    );
 }
 
 #[test]

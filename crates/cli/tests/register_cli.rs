@@ -156,5 +156,10 @@ fn register_scale_recovers_a_known_scale() {
         .output()
         .unwrap();
     assert_eq!(out.status.code(), Some(1));
+    let stderr = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        stderr.starts_with("error: --scale-range must be"),
+        "{stderr}"
+    );
     std::fs::remove_dir_all(&dir).ok();
 }

@@ -99,9 +99,11 @@ impl FrameChoice {
         match s.trim() {
             "auto" => Ok(FrameChoice::Auto),
             "axis" => Ok(FrameChoice::Axis),
-            o => Err(Error::invalid(format!(
-                "unknown frame {o:?} (auto, axis, or a JSON file)"
-            ))),
+            o => Err(Error::Unknown {
+                what: "frame",
+                value: o.into(),
+                expected: "auto, axis or a JSON file",
+            }),
         }
     }
 
@@ -114,14 +116,13 @@ impl FrameChoice {
             .and_then(|s| s.get("frame"))
             .or_else(|| v.get("rotation").map(|_| v))
             .ok_or_else(|| {
-                Error::invalid("a frame file needs \"rotation\": [w, x, y, z] (or settings.frame)")
+                Error::json("rotation", "[w, x, y, z] (or a result's settings.frame)")
             })?;
-        let q = numbers(frame.get("rotation"), 4, "frame rotation")?;
+        let q = numbers(frame.get("rotation"), 4, "rotation")?;
         let quaternion = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
         if quaternion.norm().is_nan() || quaternion.norm() <= 1e-12 {
-            return Err(Error::invalid(
-                "frame rotation must be a non-zero quaternion",
-            ));
+            let expected = "a non-zero quaternion [w, x, y, z]";
+            return Err(Error::out_of_range("rotation", format!("{q:?}"), expected));
         }
         let origin_value = match settings {
             Some(s) => s.get("origin"),
@@ -130,7 +131,7 @@ impl FrameChoice {
         let origin = match origin_value {
             None | Some(Value::Null) => None,
             Some(o) => {
-                let o = numbers(Some(o), 3, "frame origin")?;
+                let o = numbers(Some(o), 3, "origin")?;
                 Some(Point3::new(o[0], o[1], o[2]))
             }
         };
@@ -153,9 +154,7 @@ fn numbers(v: Option<&Value>, n: usize, what: &str) -> Result<Vec<f64>> {
         })
         .unwrap_or_default();
     if out.len() != n || v.and_then(Value::as_array).map(Vec::len) != Some(n) {
-        return Err(Error::invalid(format!(
-            "{what} must be an array of {n} finite numbers"
-        )));
+        return Err(Error::json(what, format!("an array of {n} finite numbers")));
     }
     Ok(out)
 }

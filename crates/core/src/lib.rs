@@ -26,6 +26,7 @@
 //! | [`register`] | particle-filter registration of a mesh, the chamfer as measurement |
 //! | [`metrics`] | the measures of DESIGN §4 |
 //! | [`io`] | PLY and JSON |
+//! | [`error`], [`check`] | the typed error and the range checks that build it |
 //!
 //! Units: every length is in the cloud's units (metres for the bundled data); distances
 //! inside losses are **squared** Euclidean, as in the thesis.
@@ -103,6 +104,7 @@ pub use nalgebra as na;
 
 pub mod atlas;
 pub mod chamfer;
+pub mod check;
 pub mod cloud;
 pub mod error;
 pub mod fit;

@@ -27,7 +27,7 @@ use serde_json::{Map, Value};
 use crate::atlas::Shape;
 use crate::cloud::bounds_of;
 use crate::spatial::{PointIndex, PrimitiveIndex};
-use crate::{Error, Primitive, Result};
+use crate::{Error, Primitive, Result, check};
 
 /// For every point, the distance to the nearest surface of `model` (`+∞` when the model
 /// is empty). Parallel.
@@ -45,11 +45,7 @@ pub fn point_to_model_distances(points: &[Point3<f64>], model: &[Primitive]) -> 
 /// Area-uniform samples of all of `model`'s surfaces at about `spacing` apart
 /// ([`Primitive::sample_surface`]), concatenated in model order.
 pub fn model_samples(model: &[Primitive], spacing: f64) -> Result<Vec<Point3<f64>>> {
-    if !(spacing.is_finite() && spacing > 0.0) {
-        return Err(Error::invalid(format!(
-            "sample spacing must be positive and finite, got {spacing}"
-        )));
-    }
+    check::positive("sample_spacing", spacing)?;
     let per: Vec<Vec<Point3<f64>>> = model
         .par_iter()
         .map(|p| p.sample_surface(spacing))
@@ -61,7 +57,7 @@ pub fn model_samples(model: &[Primitive], spacing: f64) -> Result<Vec<Point3<f64
 /// cloud). Errs on an empty cloud. Parallel.
 pub fn nearest_cloud_distances(queries: &[Point3<f64>], cloud: &[Point3<f64>]) -> Result<Vec<f64>> {
     if cloud.is_empty() {
-        return Err(Error::invalid("the point cloud is empty"));
+        return Err(Error::EmptyCloud);
     }
     let tree = PointIndex::new(cloud);
     Ok(queries
@@ -161,11 +157,7 @@ pub fn match_primitives(
     tolerance: f64,
     spacing: f64,
 ) -> Result<Matching> {
-    if !(tolerance.is_finite() && tolerance >= 0.0) {
-        return Err(Error::invalid(format!(
-            "match tolerance must be finite and ≥ 0, got {tolerance}"
-        )));
-    }
+    check::non_negative("tolerance", tolerance)?;
     match_with(fitted, truth, spacing, |_, _| tolerance)
 }
 
@@ -177,11 +169,7 @@ pub fn match_primitives_relative(
     fraction: f64,
     spacing: f64,
 ) -> Result<Matching> {
-    if !(fraction.is_finite() && fraction >= 0.0) {
-        return Err(Error::invalid(format!(
-            "match tolerance fraction must be finite and ≥ 0, got {fraction}"
-        )));
-    }
+    check::non_negative("fraction", fraction)?;
     match_with(fitted, truth, spacing, |a, b| {
         fraction * a.bounding_radius().min(b.bounding_radius())
     })
@@ -194,11 +182,7 @@ fn match_with(
     spacing: f64,
     tolerance: impl Fn(&Primitive, &Primitive) -> f64 + Sync,
 ) -> Result<Matching> {
-    if !(spacing.is_finite() && spacing > 0.0) {
-        return Err(Error::invalid(format!(
-            "sample spacing must be positive and finite, got {spacing}"
-        )));
-    }
+    check::positive("sample_spacing", spacing)?;
     let tolerance = &tolerance;
     let mut candidates: Vec<(f64, usize, usize)> = (0..fitted.len())
         .into_par_iter()
@@ -365,18 +349,12 @@ pub fn evaluate(
     options: &MetricsOptions,
 ) -> Result<Metrics> {
     if cloud.is_empty() {
-        return Err(Error::invalid(
-            "cannot evaluate a model against an empty point cloud",
-        ));
+        return Err(Error::EmptyCloud);
     }
     let tau = options
         .coverage_tau
         .unwrap_or_else(|| default_coverage_tau(cloud));
-    if !(tau.is_finite() && tau >= 0.0) {
-        return Err(Error::invalid(format!(
-            "coverage τ must be finite and ≥ 0, got {tau}"
-        )));
-    }
+    check::non_negative("coverage_tau", tau)?;
     let spacing = options
         .sample_spacing
         .unwrap_or_else(|| default_sample_spacing(model, cloud.len()));

@@ -86,8 +86,11 @@ impl Pose {
         let q = numbers(v.get("rotation"), 4, "pose.rotation")?;
         let quaternion = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
         if quaternion.norm().is_nan() || quaternion.norm() <= 1e-12 {
-            return Err(Error::invalid(
-                "pose.rotation must be a non-zero quaternion [w, x, y, z]",
+            let expected = "a non-zero quaternion [w, x, y, z]";
+            return Err(Error::out_of_range(
+                "pose.rotation",
+                format!("{q:?}"),
+                expected,
             ));
         }
         let scale = match v.get("scale") {
@@ -95,9 +98,7 @@ impl Pose {
             Some(s) => s
                 .as_f64()
                 .filter(|s| s.is_finite() && *s > 0.0)
-                .ok_or_else(|| {
-                    Error::invalid(format!("pose.scale must be a positive number, got {s}"))
-                })?,
+                .ok_or_else(|| Error::out_of_range("pose.scale", s, "a positive number"))?,
         };
         Ok(Pose {
             rotation: UnitQuaternion::from_quaternion(quaternion),
@@ -237,13 +238,13 @@ impl Primitive {
         let kind = v
             .get("type")
             .and_then(Value::as_str)
-            .ok_or_else(|| Error::invalid("primitive entry without a \"type\" string"))?;
+            .ok_or_else(|| Error::json("type", "a string naming the primitive type"))?;
         let kind = ShapeKind::parse(kind)?;
         let size = v.get("size").cloned().unwrap_or(Value::Null);
         let get = |key: &str| -> Result<f64> {
             size.get(key)
                 .and_then(Value::as_f64)
-                .ok_or_else(|| Error::invalid(format!("{kind} entry needs a numeric size.{key}")))
+                .ok_or_else(|| Error::json(format!("size.{key}"), format!("a number (a {kind})")))
         };
         let shape = match kind {
             ShapeKind::Square => Shape::Square { side: get("side")? },
@@ -262,9 +263,10 @@ impl Primitive {
                 radius: get("radius")?,
             },
             ShapeKind::Mesh => {
-                let source = size.get("source").and_then(Value::as_str).ok_or_else(|| {
-                    Error::invalid("mesh entry needs size.source naming its PLY file")
-                })?;
+                let source = size
+                    .get("source")
+                    .and_then(Value::as_str)
+                    .ok_or_else(|| Error::json("size.source", "the name of the mesh's PLY file"))?;
                 Shape::Mesh(load_mesh(source)?)
             }
         };
@@ -283,16 +285,14 @@ impl Primitive {
 fn numbers(v: Option<&Value>, n: usize, what: &str) -> Result<Vec<f64>> {
     let arr = v
         .and_then(Value::as_array)
-        .ok_or_else(|| Error::invalid(format!("{what} must be an array of {n} numbers")))?;
+        .ok_or_else(|| Error::json(what, format!("an array of {n} numbers")))?;
     let out: Vec<f64> = arr
         .iter()
         .filter_map(Value::as_f64)
         .filter(|x| x.is_finite())
         .collect();
     if arr.len() != n || out.len() != n {
-        return Err(Error::invalid(format!(
-            "{what} must be an array of {n} finite numbers"
-        )));
+        return Err(Error::json(what, format!("an array of {n} finite numbers")));
     }
     Ok(out)
 }

@@ -189,9 +189,10 @@ impl<'a> PrimitiveIndex<'a> {
         for (i, p) in prims.iter().enumerate() {
             let (c, r) = (p.center(), p.bounding_radius());
             if !(c.coords.iter().all(|v| v.is_finite()) && r.is_finite() && r >= 0.0) {
-                return Err(Error::invalid(format!(
-                    "primitive {i} has a non-finite centre or bounding radius"
-                )));
+                return Err(Error::NonFinite {
+                    what: "the bounding sphere of primitive".into(),
+                    index: i,
+                });
             }
             let class = if r > 0.0 {
                 r.log2().floor() as i32

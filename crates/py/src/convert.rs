@@ -17,11 +17,27 @@ use pyo3::types::PyString;
 
 /// Maps a core error onto the Python exception a caller expects: file problems are
 /// `OSError`, everything else (bad arguments, shapes, file contents, size limits) is
-/// `ValueError`. The message is the core's one-line message.
+/// `ValueError`. An error about one item of a list maps as its fault does. The message
+/// is the core's one-line message, options named as in the library (and in the Python
+/// keyword arguments).
 pub fn to_py(e: Error) -> PyErr {
-    match e {
-        Error::Io { .. } => PyOSError::new_err(e.to_string()),
-        _ => PyValueError::new_err(e.to_string()),
+    let message = e.to_string();
+    match e.root() {
+        Error::Io { .. } => PyOSError::new_err(message),
+        Error::OutOfRange { .. }
+        | Error::Unknown { .. }
+        | Error::EmptyCloud
+        | Error::NonFinite { .. }
+        | Error::Mismatch { .. }
+        | Error::IndexOutOfRange { .. }
+        | Error::Missing { .. }
+        | Error::Json { .. }
+        | Error::Format { .. }
+        | Error::InvalidArgument(_) => PyValueError::new_err(message),
+        // Refused before allocating: the caller can shrink the problem.
+        Error::OverLimit { .. } | Error::TooLarge(_) => PyValueError::new_err(message),
+        // `root` never returns an item wrapper.
+        Error::Item { .. } => PyValueError::new_err(message),
     }
 }
 

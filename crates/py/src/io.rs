@@ -8,7 +8,7 @@ use primfit_core::atlas::MeshShape;
 use primfit_core::fit::primitives_mesh;
 use primfit_core::io::{self, Encoding};
 use primfit_core::na::Vector3;
-use primfit_core::{Error, PointCloud, Primitive, Result};
+use primfit_core::{PointCloud, Primitive, Result};
 use pyo3::exceptions::PyValueError;
 use pyo3::prelude::*;
 use pyo3::types::PyDict;
@@ -158,12 +158,7 @@ pub fn write_mesh(
         let prims = list
             .iter()
             .enumerate()
-            .map(|(k, v)| {
-                Primitive::from_json(v, &load).map_err(|e| match e {
-                    Error::Io { .. } => e,
-                    other => Error::invalid(format!("primitive {k}: {other}")),
-                })
-            })
+            .map(|(k, v)| Primitive::from_json(v, &load).map_err(|e| e.in_item("primitive", k)))
             .collect::<Result<Vec<_>>>()?;
         let (mesh, owner) = primitives_mesh(&prims);
         io::write_mesh(&path, &mesh, Some(&owner), encoding(ascii))

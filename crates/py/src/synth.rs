@@ -174,9 +174,11 @@ pub fn synth_six_in_a_row<'py>(
         "squares" => SixVariant::Squares,
         "cylinders" => SixVariant::Cylinders,
         other => {
-            return Err(Error::invalid(format!(
-                "unknown variant {other:?} (squares|cylinders)"
-            )))
+            return Err(Error::Unknown {
+                what: "variant",
+                value: other.into(),
+                expected: "squares or cylinders",
+            })
             .py();
         }
     };

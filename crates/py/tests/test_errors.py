@@ -139,7 +139,7 @@ def test_object_and_string_arrays_raise_type_error(problem_args):
         ({"alpha": 2.5}, "alpha must be a positive integer"),
         ({"cap": -1.0}, "cap must be finite"),
         ({"cap": float("nan")}, "cap must be finite"),
-        ({"weights": (1.0, -1.0)}, "point weight"),
+        ({"weights": (1.0, -1.0)}, "point_weight"),
     ],
 )
 def test_bad_options(problem_args, kw, match):

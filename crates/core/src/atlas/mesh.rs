@@ -41,9 +41,10 @@ impl MeshShape {
     /// Wraps `mesh` (local frame, same units as the scene before the pose's scale) as a
     /// primitive type and indexes it for queries.
     ///
-    /// Errors ([`Error::InvalidArgument`]) if a face refers to a missing vertex, a vertex
-    /// is not finite, or the mesh has no face with positive area. Zero-area faces are
-    /// allowed (they get no samples and act as segments in distance queries).
+    /// Errors ([`Error::IndexOutOfRange`], [`Error::NonFinite`], [`Error::InvalidArgument`])
+    /// if a face refers to a missing vertex, a vertex is not finite, or the mesh has no
+    /// face with positive area. Zero-area faces are allowed (they get no samples and act
+    /// as segments in distance queries).
     pub fn new(source: impl Into<String>, mesh: impl Into<Arc<TriMesh>>) -> Result<MeshShape> {
         let (source, mesh) = (source.into(), mesh.into());
         check_mesh(&source, &mesh)?;
@@ -122,25 +123,20 @@ fn check_mesh(source: &str, mesh: &TriMesh) -> Result<()> {
         .iter()
         .position(|v| !v.iter().all(|c| c.is_finite()))
     {
-        return Err(Error::invalid(format!(
-            "mesh {source:?}: vertex {v} is not finite"
-        )));
+        return Err(Error::NonFinite {
+            what: format!("mesh {source:?} vertex"),
+            index: v,
+        });
     }
-    let n = mesh.vertices.len();
-    if let Some(f) = mesh
-        .faces
-        .iter()
-        .position(|f| f.iter().any(|&i| i as usize >= n))
-    {
-        return Err(Error::invalid(format!(
-            "mesh {source:?}: face {f} refers to a vertex beyond the {n} vertices"
-        )));
-    }
+    mesh.check_indices(mesh.vertices.len(), &format!("mesh {source:?} faces"))?;
     let area = mesh.area();
     if area.is_nan() || area <= 0.0 {
-        return Err(Error::invalid(format!(
-            "mesh {source:?} has no faces with area"
-        )));
+        return Err(no_faces_with_area(source));
     }
     Ok(())
+}
+
+/// The error of a mesh whose faces all have zero area (or that has none).
+pub(super) fn no_faces_with_area(source: &str) -> Error {
+    Error::invalid(format!("mesh {source:?} has no faces with area"))
 }

@@ -5,12 +5,13 @@ use nalgebra::{Point3, Vector3};
 use serde_json::{Map, Value};
 
 use super::elbow::{elbow_closest, elbow_mesh, elbow_ray, elbow_sample};
+use super::mesh::no_faces_with_area;
 use super::planar::{disk_closest, disk_mesh, disk_ray, disk_sample};
 use super::planar::{square_closest, square_mesh, square_ray, square_sample};
 use super::sphere::{sphere_closest, sphere_mesh, sphere_ray, sphere_sample};
 use super::tube::{cylinder_closest, cylinder_mesh, cylinder_ray, cylinder_sample};
 use super::{MeshShape, TriMesh};
-use crate::{Error, Result};
+use crate::{Error, Result, check};
 
 /// The name of a primitive type, as used on the command line and in JSON.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, PartialOrd, Ord)]
@@ -57,10 +58,10 @@ impl ShapeKind {
         ShapeKind::ALL
             .into_iter()
             .find(|k| k.name() == name.trim().to_ascii_lowercase())
-            .ok_or_else(|| {
-                Error::invalid(format!(
-                    "unknown primitive type {name:?} (known: disk, square, cylinder, elbow, sphere, mesh)"
-                ))
+            .ok_or_else(|| Error::Unknown {
+                what: "primitive type",
+                value: name.into(),
+                expected: "disk, square, cylinder, elbow, sphere or mesh",
             })
     }
 }
@@ -123,16 +124,7 @@ impl Shape {
     /// Checks that every size is finite and positive (and an elbow's tube fits inside its
     /// bend: `radius < bend`), and that a mesh has at least one non-degenerate face.
     pub fn validate(&self) -> Result<()> {
-        let positive = |name: &str, v: f64| {
-            if v.is_finite() && v > 0.0 {
-                Ok(())
-            } else {
-                Err(Error::invalid(format!(
-                    "{} {name} must be a positive finite length, got {v}",
-                    self.kind()
-                )))
-            }
-        };
+        let positive = |size: &str, v: f64| check::positive(&format!("{} {size}", self.kind()), v);
         match self {
             Shape::Disk { diameter } | Shape::Sphere { diameter } => {
                 positive("diameter", *diameter)
@@ -146,18 +138,14 @@ impl Shape {
                 positive("bend", *bend)?;
                 positive("radius", *radius)?;
                 if radius >= bend {
-                    return Err(Error::invalid(format!(
-                        "elbow radius ({radius}) must be smaller than its bend radius ({bend})"
-                    )));
+                    let expected = format!("smaller than its bend radius ({bend})");
+                    return Err(Error::out_of_range("elbow radius", radius, expected));
                 }
                 Ok(())
             }
             Shape::Mesh(m) => {
                 if m.mesh.faces.is_empty() || m.mesh.area() <= 0.0 {
-                    return Err(Error::invalid(format!(
-                        "mesh {:?} has no faces with area",
-                        m.source
-                    )));
+                    return Err(no_faces_with_area(&m.source));
                 }
                 Ok(())
             }

@@ -4,6 +4,8 @@ use std::collections::HashMap;
 
 use nalgebra::{Point3, Vector3};
 
+use crate::{Error, Result};
+
 /// An indexed triangle mesh. Faces index into `vertices` counter-clockwise
 /// (outward normal by the right-hand rule).
 #[derive(Debug, Clone, Default, PartialEq)]
@@ -24,6 +26,23 @@ impl TriMesh {
     pub fn triangle_area(&self, f: &[u32; 3]) -> f64 {
         let [a, b, c] = f.map(|i| self.vertices[i as usize]);
         0.5 * (b - a).cross(&(c - a)).norm()
+    }
+
+    /// Checks that every face index is below `limit` (the vertex count, or less where a
+    /// file format caps indices). The error names the corner as `{name}[f][k]`, `name`
+    /// being how the caller calls the face list.
+    pub fn check_indices(&self, limit: usize, name: &str) -> Result<()> {
+        for (f, face) in self.faces.iter().enumerate() {
+            if let Some(k) = face.iter().position(|&i| i as usize >= limit) {
+                return Err(Error::IndexOutOfRange {
+                    what: format!("{name}[{f}][{k}]"),
+                    index: face[k] as usize,
+                    item: "vertex",
+                    count: limit,
+                });
+            }
+        }
+        Ok(())
     }
 
     /// Appends `other`, re-indexing its faces; returns the range of face indices added.

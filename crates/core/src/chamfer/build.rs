@@ -7,9 +7,9 @@ use rayon::prelude::*;
 
 use super::row_builder::{CellGrid, CentreIndex, RowBuilder};
 use super::{CandidateGeometry, ChamferOptions, Coefficients, PointModel};
+use crate::error::{Error, Result, Unit};
 use crate::progress::Progress;
 use crate::spatial::PointIndex;
-use crate::{Error, Result};
 
 /// Points per parallel work item when building coefficients.
 const BUILD_CHUNK: usize = 1024;
@@ -49,10 +49,13 @@ impl Coefficients {
 /// Candidate ids are `u32` in the entries.
 pub(super) fn check_candidate_count(n: usize) -> Result<()> {
     if n > u32::MAX as usize {
-        return Err(Error::TooLarge(format!(
-            "{n} candidates (at most {})",
-            u32::MAX
-        )));
+        return Err(Error::OverLimit {
+            what: "the candidate set".into(),
+            need: n as f64,
+            limit: u32::MAX as f64,
+            unit: Unit::Count("candidates"),
+            remedies: Vec::new(),
+        });
     }
     Ok(())
 }

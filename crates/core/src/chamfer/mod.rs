@@ -44,7 +44,7 @@ pub use dominance::Reduced;
 pub use eval::Evaluator;
 pub use samples::{CandidateGeometry, SampleSets};
 
-use crate::{Error, Result};
+use crate::{Error, Result, check};
 // The coefficient build's internals that `dominance.rs` reuses.
 use build::{PointRows, check_candidate_count};
 
@@ -74,9 +74,11 @@ impl PointModel {
         match s {
             "existence" => Ok(PointModel::Existence),
             "independent" => Ok(PointModel::Independent),
-            other => Err(Error::invalid(format!(
-                "unknown point model {other:?} (existence|independent)"
-            ))),
+            other => Err(Error::Unknown {
+                what: "point model",
+                value: other.into(),
+                expected: "existence or independent",
+            }),
         }
     }
 }
@@ -123,28 +125,14 @@ impl Default for ChamferOptions {
 impl ChamferOptions {
     /// Checks ranges (α, β ≥ 1; cap, weights finite and ≥ 0).
     pub fn validate(&self) -> Result<()> {
-        if self.alpha == Some(0) || self.beta == Some(0) {
-            return Err(Error::invalid(
-                "alpha and beta must be at least 1 (or unlimited)",
-            ));
-        }
-        if !(self.cap.is_finite() && self.cap >= 0.0) {
-            return Err(Error::invalid(format!(
-                "cap must be finite and ≥ 0, got {}",
-                self.cap
-            )));
-        }
-        for (n, w) in [
-            ("primitive", self.primitive_weight),
-            ("point", self.point_weight),
-        ] {
-            if !(w.is_finite() && w >= 0.0) {
-                return Err(Error::invalid(format!(
-                    "{n} weight must be finite and ≥ 0, got {w}"
-                )));
+        for (name, limit) in [("alpha", self.alpha), ("beta", self.beta)] {
+            if let Some(k) = limit {
+                check::at_least(name, k, 1)?;
             }
         }
-        Ok(())
+        check::non_negative("cap", self.cap)?;
+        check::non_negative("primitive_weight", self.primitive_weight)?;
+        check::non_negative("point_weight", self.point_weight)
     }
 }
 

@@ -60,18 +60,22 @@ impl SampleSets {
     /// Groups `samples` by `owner` (each in `0..n`). Every candidate needs ≥ 1 sample.
     pub fn new(samples: &[Point3<f64>], owner: &[usize], n: usize) -> Result<Self> {
         if samples.len() != owner.len() {
-            return Err(Error::Shape(format!(
-                "{} samples but {} owners",
-                samples.len(),
-                owner.len()
-            )));
+            return Err(Error::Mismatch {
+                what: "owners",
+                len: owner.len(),
+                per: "samples",
+                expected: samples.len(),
+            });
         }
         let mut counts = vec![0usize; n];
         for (k, &o) in owner.iter().enumerate() {
             if o >= n {
-                return Err(Error::invalid(format!(
-                    "owner[{k}] = {o} is not a candidate index (N = {n})"
-                )));
+                return Err(Error::IndexOutOfRange {
+                    what: format!("owner[{k}]"),
+                    index: o,
+                    item: "candidate",
+                    count: n,
+                });
             }
             counts[o] += 1;
         }

@@ -1089,16 +1089,19 @@ fn io_write_rejects_inconsistent_input_without_creating_files() {
     let path = dir.path("bad.ply");
     assert!(matches!(
         write_cloud(&path, &cloud, Encoding::Ascii),
-        Err(Error::Shape(_))
+        Err(Error::Mismatch { what: "labels", .. })
     ));
     let (mut mesh, prims) = small_mesh();
     assert!(matches!(
         write_mesh(&path, &mesh, Some(&prims[1..]), Encoding::Ascii),
-        Err(Error::Shape(_))
+        Err(Error::Mismatch {
+            what: "face_primitive",
+            ..
+        })
     ));
     mesh.faces.push([0, 1, 99]);
     let e = write_mesh(&path, &mesh, None, Encoding::Ascii).expect_err("bad index");
-    assert!(e.to_string().contains("face 3 refers to vertex 99"), "{e}");
+    assert!(e.to_string().contains("faces[3][2] = 99"), "{e}");
     assert!(dir.files().is_empty(), "{:?}", dir.files());
 }
 

@@ -12,7 +12,8 @@ use rayon::prelude::*;
 
 use crate::atlas::Shape;
 use crate::chamfer::CandidateGeometry;
-use crate::{Error, PointCloud, Pose, Primitive, Result};
+use crate::error::{Remedy, Unit};
+use crate::{Error, PointCloud, Pose, Primitive, Result, check};
 
 mod orientation;
 mod template;
@@ -41,27 +42,17 @@ impl LatticeSpec {
     /// Checks sizes and spacings.
     pub fn validate(&self) -> Result<()> {
         if self.shapes.is_empty() {
-            return Err(Error::invalid(
-                "the lattice needs at least one primitive type",
-            ));
+            return Err(Error::Missing {
+                what: "at least one primitive type".into(),
+                needed_by: "the lattice",
+            });
         }
         for s in &self.shapes {
             s.validate()?;
         }
-        for (name, v) in [
-            ("spacing", self.spacing),
-            ("sample spacing", self.sample_spacing),
-        ] {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(Error::invalid(format!(
-                    "lattice {name} must be a positive length, got {v}"
-                )));
-            }
-        }
-        if !self.origin.coords.iter().all(|c| c.is_finite()) {
-            return Err(Error::invalid("lattice origin must be finite"));
-        }
-        Ok(())
+        check::positive("spacing", self.spacing)?;
+        check::positive("sample_spacing", self.sample_spacing)?;
+        check::finite("origin", self.origin.coords.as_slice())
     }
 }
 
@@ -84,17 +75,23 @@ impl CandidateSet {
         poses: Vec<Pose>,
     ) -> Result<Self> {
         if template_of.len() != poses.len() {
-            return Err(Error::Shape(format!(
-                "{} template ids but {} poses",
-                template_of.len(),
-                poses.len()
-            )));
+            return Err(Error::Mismatch {
+                what: "template ids",
+                len: template_of.len(),
+                per: "poses",
+                expected: poses.len(),
+            });
         }
-        if let Some(bad) = template_of.iter().find(|t| **t as usize >= templates.len()) {
-            return Err(Error::invalid(format!(
-                "template id {bad} out of range ({} templates)",
-                templates.len()
-            )));
+        if let Some(k) = template_of
+            .iter()
+            .position(|t| *t as usize >= templates.len())
+        {
+            return Err(Error::IndexOutOfRange {
+                what: format!("template_of[{k}]"),
+                index: template_of[k] as usize,
+                item: "template",
+                count: templates.len(),
+            });
         }
         Ok(CandidateSet {
             templates,
@@ -132,9 +129,7 @@ impl CandidateSet {
     pub fn build(spec: &LatticeSpec, cloud: &PointCloud) -> Result<Self> {
         spec.validate()?;
         if cloud.is_empty() {
-            return Err(Error::invalid(
-                "cannot build a lattice around an empty cloud",
-            ));
+            return Err(Error::EmptyCloud);
         }
         check_template_sizes(spec)?;
         check_grid_extent(spec, cloud)?;
@@ -319,13 +314,18 @@ fn check_template_sizes(spec: &LatticeSpec) -> Result<()> {
     for s in &spec.shapes {
         let n = s.area() / (spec.sample_spacing * spec.sample_spacing);
         if n.is_nan() || n > MAX_TEMPLATE_SAMPLES {
-            return Err(Error::TooLarge(format!(
-                "a {} of area {:.3e} sampled every {} would need about {n:.1e} samples \
-                 (at most {MAX_TEMPLATE_SAMPLES:.0e}); use a coarser --sample-spacing",
-                s.kind().name(),
-                s.area(),
-                spec.sample_spacing
-            )));
+            return Err(Error::OverLimit {
+                what: format!(
+                    "a {} of area {:.3e} sampled every {}",
+                    s.kind().name(),
+                    s.area(),
+                    spec.sample_spacing
+                ),
+                need: n,
+                limit: MAX_TEMPLATE_SAMPLES,
+                unit: Unit::Count("samples"),
+                remedies: vec![Remedy::Raise("sample_spacing")],
+            });
         }
     }
     Ok(())
@@ -341,11 +341,13 @@ fn check_grid_extent(spec: &LatticeSpec, cloud: &PointCloud) -> Result<()> {
         .fold(0.0, f64::max);
     let cells = far / spec.spacing;
     if cells.is_nan() || cells > MAX_CELLS_PER_AXIS {
-        return Err(Error::TooLarge(format!(
-            "a lattice spacing of {} puts the cloud up to {cells:.1e} cells from the lattice \
-             origin (at most {MAX_CELLS_PER_AXIS:.0e}); use a coarser --spacing or an --origin nearer the cloud",
-            spec.spacing
-        )));
+        return Err(Error::OverLimit {
+            what: format!("a lattice spacing of {}", spec.spacing),
+            need: cells,
+            limit: MAX_CELLS_PER_AXIS,
+            unit: Unit::Count("cells between the lattice origin and the cloud"),
+            remedies: vec![Remedy::Raise("spacing"), Remedy::Nearer("origin")],
+        });
     }
     Ok(())
 }
@@ -371,14 +373,18 @@ fn check_dilation(
     }
     let bound = (occupied.len() as f64 * ball).min(boxed) * rotations as f64;
     if !(ball <= MAX_CANDIDATES && bound <= MAX_CANDIDATES) {
-        return Err(Error::TooLarge(format!(
-            "a {} of radius {:.3e} on a lattice of spacing {} could give up to {:.1e} \
-             candidates (at most {MAX_CANDIDATES:.0e}); use a coarser --spacing",
-            shape.kind().name(),
-            shape.bounding_radius(),
-            spec.spacing,
-            bound.max(ball)
-        )));
+        return Err(Error::OverLimit {
+            what: format!(
+                "a {} of radius {:.3e} on a lattice of spacing {}",
+                shape.kind().name(),
+                shape.bounding_radius(),
+                spec.spacing
+            ),
+            need: bound.max(ball),
+            limit: MAX_CANDIDATES,
+            unit: Unit::Count("candidates"),
+            remedies: vec![Remedy::Raise("spacing")],
+        });
     }
     Ok(())
 }

@@ -224,9 +224,14 @@ fn bad_specs_are_errors() {
     let cloud = PointCloud::from_points(vec![Point3::origin()]);
     let mut s = spec();
     s.spacing = 0.0;
-    assert!(CandidateSet::build(&s, &cloud).is_err());
+    let e = CandidateSet::build(&s, &cloud).expect_err("zero spacing");
+    assert!(
+        matches!(&e, Error::OutOfRange { name, .. } if name == "spacing"),
+        "{e}"
+    );
     let mut s = spec();
     s.shapes = vec![Shape::Square { side: -1.0 }];
     assert!(CandidateSet::build(&s, &cloud).is_err());
-    assert!(CandidateSet::build(&spec(), &PointCloud::default()).is_err());
+    let e = CandidateSet::build(&spec(), &PointCloud::default()).expect_err("empty");
+    assert!(matches!(e, Error::EmptyCloud), "{e}");
 }

@@ -74,11 +74,13 @@ impl<'t> SceneState<'t> {
                 "a proposal is pending: accept or reject it first",
             ));
         }
-        if let Some(bad) = flips.iter().find(|&&i| i as usize >= self.exists.len()) {
-            return Err(Error::invalid(format!(
-                "candidate {bad} out of range ({} candidates)",
-                self.exists.len()
-            )));
+        if let Some(k) = flips.iter().position(|&i| i as usize >= self.exists.len()) {
+            return Err(Error::IndexOutOfRange {
+                what: format!("flips[{k}]"),
+                index: flips[k] as usize,
+                item: "candidate",
+                count: self.exists.len(),
+            });
         }
         self.next_epoch();
         for &i in flips {

@@ -21,7 +21,8 @@
 //! [`crate::ray::RayTable`] computes them once; evaluating a scene is then sums and one
 //! logarithm per ray.
 
-use crate::{Error, Result};
+use crate::Result;
+use crate::check::{self, Interval};
 
 /// `ln √(2π)`.
 const LN_SQRT_2PI: f64 = 0.918_938_533_204_672_8;
@@ -66,25 +67,9 @@ impl Default for RayModel {
 impl RayModel {
     /// Checks `rate > 0`, `sigma > 0` (both finite) and `min_cos ∈ (0, 1]`.
     pub fn validate(&self) -> Result<()> {
-        if !(self.rate.is_finite() && self.rate > 0.0) {
-            return Err(Error::invalid(format!(
-                "ray noise rate must be a positive number of points per unit length, got {}",
-                self.rate
-            )));
-        }
-        if !(self.sigma.is_finite() && self.sigma > 0.0) {
-            return Err(Error::invalid(format!(
-                "ray sigma must be a positive length, got {}",
-                self.sigma
-            )));
-        }
-        if !(self.min_cos > 0.0 && self.min_cos <= 1.0) {
-            return Err(Error::invalid(format!(
-                "min_cos must be in (0, 1], got {}",
-                self.min_cos
-            )));
-        }
-        Ok(())
+        check::positive("rate", self.rate)?;
+        check::positive("sigma", self.sigma)?;
+        check::in_interval("min_cos", self.min_cos, Interval::open_closed(0.0, 1.0))
     }
 
     /// The along-ray standard deviation `s` for a crossing at incidence `|cos θ|` (m).

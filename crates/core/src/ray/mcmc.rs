@@ -19,6 +19,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::incremental::SceneState;
 use super::raytree::RayTable;
+use crate::check::{self, Interval};
 use crate::progress::Progress;
 use crate::{Error, Result};
 
@@ -58,19 +59,8 @@ impl Default for McmcOptions {
 impl McmcOptions {
     /// Checks the ranges.
     pub fn validate(&self) -> Result<()> {
-        if !(self.flips_per_step.is_finite() && self.flips_per_step > 0.0) {
-            return Err(Error::invalid(format!(
-                "flips per step must be positive, got {}",
-                self.flips_per_step
-            )));
-        }
-        if !(self.decay > 0.0 && self.decay <= 1.0) {
-            return Err(Error::invalid(format!(
-                "flip-rate decay must be in (0, 1], got {}",
-                self.decay
-            )));
-        }
-        Ok(())
+        check::positive("flips_per_step", self.flips_per_step)?;
+        check::in_interval("decay", self.decay, Interval::open_closed(0.0, 1.0))
     }
 }
 
@@ -103,7 +93,7 @@ pub struct McmcResult {
 /// prior is 0 get rate 0 (they never exist).
 pub fn flip_rates(table: &RayTable, prior: &[f64], options: &McmcOptions) -> Result<Vec<f64>> {
     options.validate()?;
-    check_prior(table, prior)?;
+    check_per_candidate("prior", prior, table, Interval::closed_open(0.0, 1.0))?;
     let newest = table.frames().saturating_sub(1) as i32;
     let weights: Vec<f64> = (0..table.candidates())
         .map(|i| {
@@ -122,18 +112,23 @@ pub fn flip_rates(table: &RayTable, prior: &[f64], options: &McmcOptions) -> Res
     Ok(weights.iter().map(|w| (c * w).min(1.0)).collect())
 }
 
-fn check_prior(table: &RayTable, prior: &[f64]) -> Result<()> {
-    if prior.len() != table.candidates() {
-        return Err(Error::Shape(format!(
-            "{} prior values for {} candidates",
-            prior.len(),
-            table.candidates()
-        )));
+/// `values` has one entry per candidate of `table`, each in `range`.
+fn check_per_candidate(
+    name: &'static str,
+    values: &[f64],
+    table: &RayTable,
+    range: Interval,
+) -> Result<()> {
+    if values.len() != table.candidates() {
+        return Err(Error::Mismatch {
+            what: name,
+            len: values.len(),
+            per: "candidates",
+            expected: table.candidates(),
+        });
     }
-    if let Some(p) = prior.iter().find(|p| !(**p >= 0.0 && **p < 1.0)) {
-        return Err(Error::invalid(format!(
-            "prior probabilities must be in [0, 1), got {p}"
-        )));
+    for (k, &v) in values.iter().enumerate() {
+        check::in_interval(&format!("{name}[{k}]"), v, range)?;
     }
     Ok(())
 }
@@ -254,13 +249,8 @@ pub fn sample(
     progress: &dyn Progress,
 ) -> Result<McmcResult> {
     options.validate()?;
-    check_prior(table, prior)?;
-    if rates.len() != table.candidates() || rates.iter().any(|r| !(*r >= 0.0 && *r <= 1.0)) {
-        return Err(Error::invalid(format!(
-            "need {} flip rates in [0, 1]",
-            table.candidates()
-        )));
-    }
+    check_per_candidate("prior", prior, table, Interval::closed_open(0.0, 1.0))?;
+    check_per_candidate("rates", rates, table, Interval::UNIT)?;
     let n = table.candidates();
     let logit: Vec<f64> = prior.iter().map(|p| p.ln() - (-p).ln_1p()).collect();
     let mut state = SceneState::new(table, vec![false; n])?;

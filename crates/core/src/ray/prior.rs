@@ -22,7 +22,13 @@ use std::collections::HashMap;
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 
 use crate::atlas::ShapeKind;
+use crate::check::{self, Interval};
+use crate::error::{Remedy, Unit};
 use crate::{Error, PointCloud, Primitive, Result};
+
+/// The most lattice cells from the prior's origin to a point along an axis (cell
+/// coordinates are `i64`; beyond this the floor is no longer exact).
+const MAX_PRIOR_CELLS: f64 = 1e15;
 
 /// `cos 45°`: a normal within 45° of an axis is "along" it.
 const COS_45: f64 = std::f64::consts::FRAC_1_SQRT_2;
@@ -62,22 +68,15 @@ impl PriorOptions {
 
     /// Checks the ranges.
     pub fn validate(&self) -> Result<()> {
-        if !(self.probability > 0.0 && self.probability < 1.0) {
-            return Err(Error::invalid(format!(
-                "prior probability must be in (0, 1), got {}",
-                self.probability
-            )));
-        }
-        if !(self.spacing.is_finite() && self.spacing > 0.0) {
-            return Err(Error::invalid(format!(
-                "prior lattice spacing must be a positive length, got {}",
-                self.spacing
-            )));
-        }
-        if !self.origin.coords.iter().all(|c| c.is_finite()) || (self.up.norm() - 1.0).abs() > 1e-6
-        {
-            return Err(Error::invalid(
-                "prior origin must be finite and up a unit vector",
+        check::in_interval("probability", self.probability, Interval::open(0.0, 1.0))?;
+        check::positive("spacing", self.spacing)?;
+        check::finite("origin", self.origin.coords.as_slice())?;
+        if (self.up.norm() - 1.0).abs() > 1e-6 {
+            let up = self.up.as_slice();
+            return Err(Error::out_of_range(
+                "up",
+                format!("{up:?}"),
+                "a unit vector",
             ));
         }
         Ok(())
@@ -159,12 +158,8 @@ pub fn existence_prior(
     check_attributes(cloud)?;
     let mut cells: HashMap<[i64; 3], Vec<u32>> = HashMap::new();
     for (j, p) in cloud.points.iter().enumerate() {
-        let g = options.grid(p);
-        if !g.iter().all(|c| c.is_finite() && c.abs() < 1e15) {
-            return Err(Error::invalid(format!("point {j} is not finite")));
-        }
         cells
-            .entry([g.x.floor() as i64, g.y.floor() as i64, g.z.floor() as i64])
+            .entry(cell_of(options, j, p)?)
             .or_default()
             .push(j as u32);
     }
@@ -193,9 +188,39 @@ fn neighbour_cells(node: &Vector3<i64>) -> impl Iterator<Item = [i64; 3]> + '_ {
     })
 }
 
+/// The lattice cell of point `j` at `p`; fails on a point that is not finite or too many
+/// cells from the origin for `i64` cell coordinates.
+fn cell_of(options: &PriorOptions, j: usize, p: &Point3<f64>) -> Result<[i64; 3]> {
+    if !p.iter().all(|c| c.is_finite()) {
+        return Err(Error::NonFinite {
+            what: "point".into(),
+            index: j,
+        });
+    }
+    let g = options.grid(p);
+    let far = g.amax();
+    if far.is_nan() || far >= MAX_PRIOR_CELLS {
+        return Err(Error::OverLimit {
+            what: format!("point {j}"),
+            need: far,
+            limit: MAX_PRIOR_CELLS,
+            unit: Unit::Count("cells from the prior's origin"),
+            remedies: vec![Remedy::Raise("spacing"), Remedy::Nearer("origin")],
+        });
+    }
+    Ok([g.x.floor() as i64, g.y.floor() as i64, g.z.floor() as i64])
+}
+
 fn check_attributes(cloud: &PointCloud) -> Result<()> {
     let n = cloud.len();
-    let bad = |what: &str, m: usize| Err(Error::Shape(format!("{n} points but {m} {what}")));
+    let bad = |what, len| {
+        Err(Error::Mismatch {
+            what,
+            len,
+            per: "points",
+            expected: n,
+        })
+    };
     match (&cloud.labels, &cloud.normals) {
         (Some(l), _) if l.len() != n => bad("labels", l.len()),
         (_, Some(v)) if v.len() != n => bad("normals", v.len()),

@@ -18,6 +18,7 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
 use super::likelihood::{RayModel, crossing_terms, ray_log_likelihood_from_sums};
+use crate::error::{Remedy, Unit};
 use crate::spatial::PlaneIndex;
 use crate::{Error, PointCloud, Primitive, Result};
 
@@ -50,33 +51,38 @@ impl Rays {
     /// Rays of `cloud`, which must have `sensors`. Points at their own sensor origin are
     /// skipped (counted in [`Rays::skipped`]); non-finite coordinates are an error.
     pub fn from_cloud(cloud: &PointCloud) -> Result<Rays> {
-        let sensors = cloud.sensors.as_ref().ok_or_else(|| {
-            Error::invalid(
-                "the ray likelihood needs each point's sensor origin \
-                 (PLY vertex properties sensor_x, sensor_y, sensor_z)",
-            )
+        let sensors = cloud.sensors.as_ref().ok_or_else(|| Error::Missing {
+            what: "each point's sensor origin (PLY vertex properties sensor_x, sensor_y, \
+                   sensor_z)"
+                .into(),
+            needed_by: "the ray likelihood",
         })?;
         if sensors.len() != cloud.len() {
-            return Err(Error::Shape(format!(
-                "{} points but {} sensor origins",
-                cloud.len(),
-                sensors.len()
-            )));
+            return Err(Error::Mismatch {
+                what: "sensor origins",
+                len: sensors.len(),
+                per: "points",
+                expected: cloud.len(),
+            });
         }
         if cloud.len() > u32::MAX as usize {
-            return Err(Error::TooLarge(format!(
-                "{} points (limit 2³²)",
-                cloud.len()
-            )));
+            return Err(Error::OverLimit {
+                what: "the ray set".into(),
+                need: cloud.len() as f64,
+                limit: u32::MAX as f64,
+                unit: Unit::Count("points"),
+                remedies: vec![Remedy::Subsample],
+            });
         }
         let mut rays = Rays::default();
         let mut frame_of: HashMap<[u64; 3], u32> = HashMap::new();
         for (j, (p, o)) in cloud.points.iter().zip(sensors).enumerate() {
             let v = p - o;
             if !v.iter().chain(o.coords.iter()).all(|c| c.is_finite()) {
-                return Err(Error::invalid(format!(
-                    "point {j} or its sensor origin has non-finite coordinates"
-                )));
+                return Err(Error::NonFinite {
+                    what: "the ray (point and sensor origin) of point".into(),
+                    index: j,
+                });
             }
             let z = v.norm();
             if z == 0.0 || !z.is_finite() {
@@ -287,12 +293,16 @@ impl RayTable {
     pub fn build(rays: &Rays, candidates: &[Primitive], model: RayModel) -> Result<RayTable> {
         model.validate()?;
         if candidates.len() >= u32::MAX as usize {
-            return Err(Error::TooLarge(format!("{} candidates", candidates.len())));
+            return Err(Error::OverLimit {
+                what: "the candidate set".into(),
+                need: candidates.len() as f64,
+                limit: (u32::MAX - 1) as f64,
+                unit: Unit::Count("candidates"),
+                remedies: Vec::new(),
+            });
         }
         for (i, c) in candidates.iter().enumerate() {
-            c.shape
-                .validate()
-                .map_err(|e| Error::invalid(format!("candidate {i}: {e}")))?;
+            c.shape.validate().map_err(|e| e.in_item("candidate", i))?;
         }
         let trees: Vec<RayTree> = rays
             .by_frame()
@@ -442,14 +452,7 @@ impl RayTable {
     }
 
     fn check(&self, exists: &[bool]) -> Result<()> {
-        if exists.len() != self.candidates() {
-            return Err(Error::Shape(format!(
-                "existence vector of length {} for {} candidates",
-                exists.len(),
-                self.candidates()
-            )));
-        }
-        Ok(())
+        check_existence(exists, self.candidates())
     }
 }
 
@@ -483,6 +486,19 @@ fn candidate_crossings(
     (out, seen)
 }
 
+/// An existence vector has one entry per candidate.
+fn check_existence(exists: &[bool], candidates: usize) -> Result<()> {
+    if exists.len() != candidates {
+        return Err(Error::Mismatch {
+            what: "existence values",
+            len: exists.len(),
+            per: "candidates",
+            expected: candidates,
+        });
+    }
+    Ok(())
+}
+
 /// Algorithm 1 (the naïve reference): for every ray, test every existing candidate for a
 /// crossing and sum eq. 4.10 (nats). No ray tree, no far-crossing cut-off: for tests.
 pub fn naive_log_likelihood(
@@ -492,13 +508,7 @@ pub fn naive_log_likelihood(
     model: &RayModel,
 ) -> Result<f64> {
     model.validate()?;
-    if exists.len() != candidates.len() {
-        return Err(Error::Shape(format!(
-            "existence vector of length {} for {} candidates",
-            exists.len(),
-            candidates.len()
-        )));
-    }
+    check_existence(exists, candidates.len())?;
     let mut total = 0.0;
     for j in 0..rays.len() {
         let (o, d, z) = (rays.origin(j), &rays.dirs[j], rays.ranges[j]);

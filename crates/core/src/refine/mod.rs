@@ -42,7 +42,7 @@ use self::retype::{RETYPE_AFTER_ROUNDS, Retyped, retype};
 use crate::atlas::Shape;
 use crate::chamfer::ChamferOptions;
 use crate::spatial::{PointIndex, median_spacing};
-use crate::{Error, Primitive, Result};
+use crate::{Primitive, Result, check};
 
 /// Clouds larger than this are refined on an evenly strided subset of this many points
 /// (see [`refine`]); the binary chamfer before and after is still the whole cloud's.
@@ -93,20 +93,11 @@ impl Default for RefineOptions {
 impl RefineOptions {
     /// Checks ranges.
     pub fn validate(&self) -> Result<()> {
-        if !(self.max_growth.is_finite() && self.max_growth >= 1.0) {
-            return Err(Error::invalid(format!(
-                "refinement max growth must be ≥ 1, got {}",
-                self.max_growth
-            )));
+        check::not_below("max_growth", self.max_growth, 1.0)?;
+        match self.trim {
+            Some(t) => check::positive("trim", t),
+            None => Ok(()),
         }
-        if let Some(t) = self.trim
-            && !(t.is_finite() && t > 0.0)
-        {
-            return Err(Error::invalid(format!(
-                "refinement trim must be a positive distance, got {t}"
-            )));
-        }
-        Ok(())
     }
 }
 

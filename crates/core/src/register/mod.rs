@@ -96,7 +96,7 @@ fn context<'a>(
 ) -> Result<(Context<'a>, Vec<Pose>)> {
     options.validate()?;
     let Some((lo, hi)) = crate::cloud::bounds_of(&cloud.points) else {
-        return Err(Error::invalid("cannot register in an empty cloud"));
+        return Err(Error::EmptyCloud);
     };
     let (mut mlo, mut mhi) = (
         Point3::from(Vector3::repeat(f64::INFINITY)),

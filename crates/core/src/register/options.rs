@@ -4,7 +4,8 @@
 use nalgebra::Vector3;
 use serde_json::{Value, json};
 
-use crate::{Error, Result};
+use crate::Result;
+use crate::check::{self, Interval};
 
 /// Settings of [`register`](super::register). Fractions are of the model size (the diagonal of the mesh's
 /// bounding box, scene units after the pose's scale).
@@ -151,7 +152,7 @@ impl Default for RegisterOptions {
 impl RegisterOptions {
     /// Checks ranges.
     pub fn validate(&self) -> Result<()> {
-        let positive = [
+        for (name, v) in [
             ("kernel_start", self.kernel_start),
             ("kernel_end", self.kernel_end),
             ("spread", self.spread),
@@ -160,64 +161,39 @@ impl RegisterOptions {
             ("vote_bin", self.vote_bin),
             ("vote_spacing", self.vote_spacing),
             ("inlier_distance", self.inlier_distance),
-        ];
-        for (name, v) in positive {
-            if !(v.is_finite() && v > 0.0) {
-                return Err(Error::invalid(format!("{name} must be positive, got {v}")));
-            }
+        ] {
+            check::positive(name, v)?;
         }
-        if !(self.kernel_shrink > 0.0 && self.kernel_shrink < 1.0) {
-            return Err(Error::invalid("kernel_shrink must lie in (0, 1)"));
+        check::in_interval(
+            "kernel_shrink",
+            self.kernel_shrink,
+            Interval::open(0.0, 1.0),
+        )?;
+        check::in_interval("basin_share", self.basin_share, Interval::closed(0.0, 0.3))?;
+        check::in_interval("ess", self.ess, Interval::open_closed(0.0, 1.0))?;
+        check::in_interval("threshold", self.threshold, Interval::UNIT)?;
+        if let Some(w) = self.primitive_weight {
+            check::non_negative("primitive_weight", w)?;
         }
-        if !(0.0..=0.3).contains(&self.basin_share) {
-            return Err(Error::invalid("basin_share must lie in [0, 0.3]"));
+        check::non_negative("min_support", self.min_support)?;
+        check::non_negative("search_support", self.search_support)?;
+        check::non_negative("prior_margin", self.prior_margin)?;
+        for (name, k) in [
+            ("initial_particles", self.initial_particles),
+            ("particles", self.particles),
+            ("max_rounds", self.max_rounds),
+            ("vote_keep", self.vote_keep),
+            ("beta", self.beta),
+        ] {
+            check::at_least(name, k, 1)?;
         }
-        if !(self.ess > 0.0 && self.ess <= 1.0) {
-            return Err(Error::invalid("ess must lie in (0, 1]"));
+        if let Some(k) = self.count {
+            check::at_least("count", k, 1)?;
         }
-        if let Some(w) = self.primitive_weight
-            && !(w.is_finite() && w >= 0.0)
-        {
-            return Err(Error::invalid("primitive_weight must be finite and ≥ 0"));
+        if let Some(range) = self.scale {
+            check::positive_range("scale", range)?;
         }
-        let supports = [self.min_support, self.search_support];
-        if !supports.iter().all(|s| s.is_finite() && *s >= 0.0) {
-            return Err(Error::invalid(
-                "min_support and search_support must be finite and ≥ 0",
-            ));
-        }
-        if !(self.prior_margin.is_finite() && self.prior_margin >= 0.0) {
-            return Err(Error::invalid("prior_margin must be finite and ≥ 0"));
-        }
-        if !(0.0..=1.0).contains(&self.threshold) {
-            return Err(Error::invalid("threshold must lie in [0, 1]"));
-        }
-        if self.initial_particles == 0
-            || self.particles == 0
-            || self.max_rounds == 0
-            || self.vote_keep == 0
-        {
-            return Err(Error::invalid(
-                "particle counts, vote_keep and max_rounds must be at least 1",
-            ));
-        }
-        if self.beta == 0 {
-            return Err(Error::invalid("beta must be at least 1"));
-        }
-        if self.count == Some(0) {
-            return Err(Error::invalid("count must be at least 1"));
-        }
-        if let Some((a, b)) = self.scale
-            && !(a.is_finite() && b.is_finite() && a > 0.0 && a <= b)
-        {
-            return Err(Error::invalid(format!(
-                "scale range ({a}, {b}) must be positive and ordered"
-            )));
-        }
-        if !self.fixed_translation.iter().all(|c| c.is_finite()) {
-            return Err(Error::invalid("fixed_translation must be finite"));
-        }
-        Ok(())
+        check::finite("fixed_translation", self.fixed_translation.as_slice())
     }
 
     /// Prior draws screened for the first population (resolves `screen: None`).

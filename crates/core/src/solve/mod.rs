@@ -46,6 +46,7 @@ pub use lbfgs::{LbfgsRun, lbfgs};
 pub use polish::{Moves, polish};
 
 use crate::chamfer::{Coefficients, Evaluator, LossValue};
+use crate::check::{self, Interval};
 use crate::progress::Progress;
 use crate::{Error, Result};
 use lbfgs::lbfgs_on_logits;
@@ -78,9 +79,11 @@ impl Parameterization {
         match s {
             "box" => Ok(Parameterization::Box),
             "logit" => Ok(Parameterization::Logit),
-            o => Err(Error::invalid(format!(
-                "unknown parameterization {o:?} (box|logit)"
-            ))),
+            o => Err(Error::Unknown {
+                what: "parameterization",
+                value: o.into(),
+                expected: "box or logit",
+            }),
         }
     }
 }
@@ -248,20 +251,14 @@ fn minimise(
 
 /// Checks the ranges of `o` ([`solve`] rejects what L-BFGS cannot start from).
 fn validate(o: &SolverOptions) -> Result<()> {
-    if o.memory == 0 {
-        return Err(Error::invalid("L-BFGS memory must be at least 1"));
-    }
-    if !(0.0..=1.0).contains(&o.initial) || !(0.0..=1.0).contains(&o.threshold) {
-        return Err(Error::invalid(
-            "initial probability and threshold must lie in [0, 1]",
-        ));
-    }
-    if o.parameterization == Parameterization::Logit && (o.initial <= 0.0 || o.initial >= 1.0) {
-        return Err(Error::invalid(
-            "the logit parameterization needs an initial probability in (0, 1)",
-        ));
-    }
-    Ok(())
+    check::at_least("memory", o.memory, 1)?;
+    check::in_interval("threshold", o.threshold, Interval::UNIT)?;
+    let starts = match o.parameterization {
+        Parameterization::Box => Interval::UNIT,
+        // Logits of 0 and 1 are infinite.
+        Parameterization::Logit => Interval::open(0.0, 1.0),
+    };
+    check::in_interval("initial", o.initial, starts)
 }
 
 #[cfg(test)]

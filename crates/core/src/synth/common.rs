@@ -8,7 +8,12 @@ use rand::{Rng, RngExt};
 use rand_distr::StandardNormal;
 
 use crate::atlas::{Shape, TriMesh};
+use crate::check::non_negative;
+use crate::error::Remedy;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
+
+/// The most points a synthetic scene may have.
+const MAX_SCENE_POINTS: f64 = 1e9;
 
 /// A synthetic scene with its ground truth.
 #[derive(Debug, Clone)]
@@ -119,16 +124,24 @@ impl Density {
             Density::PerArea(d) => {
                 non_negative("density", d)?;
                 let n = (d * area).round();
-                if n > 1e9 {
-                    return Err(Error::invalid(format!(
-                        "density {d} × area {area} asks for {n} points (limit 1e9)"
-                    )));
+                if n > MAX_SCENE_POINTS {
+                    return Err(Error::OverLimit {
+                        what: format!("a density of {d} points per unit area over {area}"),
+                        need: n,
+                        limit: MAX_SCENE_POINTS,
+                        unit: crate::error::Unit::Count("points"),
+                        remedies: vec![Remedy::Lower("density")],
+                    });
                 }
                 Ok(n as usize)
             }
-            Density::Total(n) if n > 1_000_000_000 => {
-                Err(Error::invalid(format!("{n} points asked for (limit 1e9)")))
-            }
+            Density::Total(n) if n as f64 > MAX_SCENE_POINTS => Err(Error::OverLimit {
+                what: "the scene".into(),
+                need: n as f64,
+                limit: MAX_SCENE_POINTS,
+                unit: crate::error::Unit::Count("points"),
+                remedies: vec![Remedy::Lower("points")],
+            }),
             Density::Total(n) => Ok(n),
         }
     }
@@ -167,8 +180,8 @@ pub struct Misalignment {
 impl Misalignment {
     /// Checks both bounds are finite and ≥ 0.
     pub fn validate(&self) -> Result<()> {
-        non_negative("misalignment offset", self.offset)?;
-        non_negative("misalignment angle", self.angle)
+        non_negative("offset", self.offset)?;
+        non_negative("angle", self.angle)
     }
 
     /// Draws the motion (as a [`Pose`]) for a lattice `spacing` and rotation `pivot`.
@@ -427,26 +440,4 @@ pub(crate) fn misalign<R: Rng>(
 pub(crate) fn inverse_rigid(p: &Pose) -> Pose {
     let r = p.rotation.inverse();
     Pose::new(r, -(r * p.translation))
-}
-
-/// Err unless `v` is finite and > 0.
-pub(crate) fn positive(name: &str, v: f64) -> Result<()> {
-    if v.is_finite() && v > 0.0 {
-        Ok(())
-    } else {
-        Err(Error::invalid(format!(
-            "{name} must be positive and finite, got {v}"
-        )))
-    }
-}
-
-/// Err unless `v` is finite and ≥ 0.
-pub(crate) fn non_negative(name: &str, v: f64) -> Result<()> {
-    if v.is_finite() && v >= 0.0 {
-        Ok(())
-    } else {
-        Err(Error::invalid(format!(
-            "{name} must be finite and ≥ 0, got {v}"
-        )))
-    }
 }

@@ -14,7 +14,8 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
 
-use super::common::{gauss, non_negative, positive};
+use super::common::gauss;
+use crate::check::{self, Interval, non_negative, positive};
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 
 /// Parameters of [`depth_sensor`]. Angles in radians, lengths in scene units (metres).
@@ -62,33 +63,29 @@ impl Default for SensorParams {
 
 impl SensorParams {
     fn validate(&self, truth: &[Primitive]) -> Result<()> {
-        for (name, fov) in [("h_fov", self.h_fov), ("v_fov", self.v_fov)] {
-            if !(fov > 0.0 && fov < std::f64::consts::PI) {
-                return Err(Error::invalid(format!(
-                    "sensor {name} must be in (0, π) radians, got {fov}"
-                )));
-            }
-        }
-        if self.columns == 0 || self.rows == 0 {
-            return Err(Error::invalid("the sensor needs at least one pixel"));
-        }
-        positive("max range", self.max_range)?;
-        non_negative("range noise", self.range_noise)?;
+        // Radians.
+        let field_of_view = Interval::open(0.0, std::f64::consts::PI);
+        check::in_interval("h_fov", self.h_fov, field_of_view)?;
+        check::in_interval("v_fov", self.v_fov, field_of_view)?;
+        check::at_least("columns", self.columns, 1)?;
+        check::at_least("rows", self.rows, 1)?;
+        positive("max_range", self.max_range)?;
+        non_negative("range_noise", self.range_noise)?;
         if let Some(l) = &self.labels
             && l.len() != truth.len()
         {
-            return Err(Error::Shape(format!(
-                "{} labels for {} true primitives",
-                l.len(),
-                truth.len()
-            )));
+            return Err(Error::Mismatch {
+                what: "labels",
+                len: l.len(),
+                per: "true primitives",
+                expected: truth.len(),
+            });
         }
-        if self
-            .poses
-            .iter()
-            .any(|p| !p.translation.iter().all(|c| c.is_finite()))
-        {
-            return Err(Error::invalid("sensor poses must be finite"));
+        for (k, pose) in self.poses.iter().enumerate() {
+            check::finite(
+                &format!("poses[{k}].translation"),
+                pose.translation.as_slice(),
+            )?;
         }
         Ok(())
     }
@@ -108,12 +105,18 @@ impl SensorParams {
     }
 }
 
+/// The error of a point `name` at `p` that coincides with the point `other`.
+fn distinct_points(name: &str, p: &Point3<f64>, other: &str) -> Error {
+    let expected = format!("a point other than {other}");
+    Error::out_of_range(name, format!("{:?}", p.coords.as_slice()), expected)
+}
+
 /// A sensor pose at `eye` looking at `target`, with the sensor's +z as close to the
 /// scene's +z as possible (+y when looking straight up or down).
 pub fn look_at(eye: Point3<f64>, target: Point3<f64>) -> Result<Pose> {
     let forward = (target - eye)
         .try_normalize(1e-12)
-        .ok_or_else(|| Error::invalid("look_at: eye and target coincide"))?;
+        .ok_or_else(|| distinct_points("target", &target, "eye"))?;
     let up = [Vector3::z(), Vector3::y()]
         .iter()
         .find_map(|a| (a - forward * a.dot(&forward)).try_normalize(1e-6))
@@ -136,7 +139,7 @@ pub fn walk_poses(
 ) -> Result<Vec<Pose>> {
     let dir = (to - from)
         .try_normalize(1e-12)
-        .ok_or_else(|| Error::invalid("walk_poses: from and to coincide"))?;
+        .ok_or_else(|| distinct_points("to", &to, "from"))?;
     (0..frames)
         .map(|k| {
             let s = if frames > 1 {
@@ -158,7 +161,7 @@ pub fn orbit_poses(
     height: f64,
     frames: usize,
 ) -> Result<Vec<Pose>> {
-    positive("orbit radius", radius)?;
+    positive("radius", radius)?;
     (0..frames)
         .map(|k| {
             let a = std::f64::consts::TAU * k as f64 / frames.max(1) as f64;

@@ -5,11 +5,15 @@ use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
 use super::common::{
-    Density, LatticeHint, Misalignment, Noise, Piece, Scene, axis_rotation, misalign, positive,
-    sample_pieces,
+    Density, LatticeHint, Misalignment, Noise, Piece, Scene, axis_rotation, misalign, sample_pieces,
 };
 use crate::atlas::Shape;
+use crate::check::{self, positive};
+use crate::error::{Remedy, Unit};
 use crate::{Error, PointCloud, Pose, Primitive, Result};
+
+/// The most squares a hallway may have.
+const MAX_HALLWAY_SQUARES: f64 = 1e7;
 
 /// Parameters of [`hallway`]. Lengths in metres (scene units).
 ///
@@ -80,30 +84,33 @@ pub fn hallway(params: &HallwayParams) -> Result<Scene> {
         side,
         ..
     } = *params;
-    positive("hallway length", length)?;
-    positive("hallway width", width)?;
-    positive("hallway height", height)?;
-    positive("hallway square side", side)?;
+    positive("length", length)?;
+    positive("width", width)?;
+    positive("height", height)?;
+    positive("side", side)?;
     let s = side / 2.0;
     for (name, v) in [("width", width), ("height", height)] {
-        if ((v / s) - (v / s).round()).abs() > 1e-9 || v < side - 1e-12 {
-            return Err(Error::invalid(format!(
-                "hallway {name} ({v}) must be a multiple of the lattice spacing side/2 = {s} and at least one side"
-            )));
-        }
+        check::multiple_of(name, v, s, "side / 2")?;
     }
-    if length < side - 1e-12 {
-        return Err(Error::invalid(format!(
-            "hallway length ({length}) must be at least one square side ({side})"
-        )));
+    for (name, v) in [("length", length), ("width", width), ("height", height)] {
+        if v < side - 1e-12 {
+            return Err(Error::out_of_range(
+                name,
+                v,
+                format!("at least side = {side}"),
+            ));
+        }
     }
     // Squares: about (length / s) × (floor, ceiling and walls) / s.
     let tiles = (length / s) * ((2.0 * width + 2.0 * height) / s);
-    if tiles > 1e7 {
-        return Err(Error::invalid(format!(
-            "a {length} × {width} × {height} hallway of squares of side {side} would need \
-             about {tiles:.1e} squares (limit 1e7)"
-        )));
+    if tiles > MAX_HALLWAY_SQUARES {
+        return Err(Error::OverLimit {
+            what: format!("a {length} × {width} × {height} hallway of squares of side {side}"),
+            need: tiles,
+            limit: MAX_HALLWAY_SQUARES,
+            unit: Unit::Count("squares"),
+            remedies: vec![Remedy::Raise("side")],
+        });
     }
     let (ix, iy, iz) = (
         tile_indices(length, side),

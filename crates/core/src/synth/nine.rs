@@ -4,10 +4,9 @@ use nalgebra::{Point3, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::common::{
-    Density, LatticeHint, Noise, Piece, Scene, axis_rotation, non_negative, positive, sample_pieces,
-};
+use super::common::{Density, LatticeHint, Noise, Piece, Scene, axis_rotation, sample_pieces};
 use crate::atlas::Shape;
+use crate::check::{self, non_negative, positive};
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 
 /// Parameters of [`nine_cylinders`]. Lengths in metres (scene units).
@@ -56,21 +55,17 @@ impl Default for NineCylinderParams {
 
 fn validate(p: &NineCylinderParams) -> Result<()> {
     positive("pitch", p.pitch)?;
-    positive("cylinder radius", p.radius)?;
-    positive("cylinder height", p.height)?;
-    non_negative("alignment offset", p.offset)?;
-    if p.mask >= 512 {
-        return Err(Error::invalid(format!(
-            "nine-cylinder mask {} must be below 512 (9 bits)",
-            p.mask
-        )));
-    }
+    positive("radius", p.radius)?;
+    positive("height", p.height)?;
+    non_negative("offset", p.offset)?;
+    check::at_most("mask", usize::from(p.mask), 511)?;
     if p.pitch <= 2.0 * p.radius {
-        return Err(Error::invalid(format!(
-            "pitch ({}) must exceed the cylinder diameter ({}) so the cylinders are disjoint",
-            p.pitch,
+        // Disjoint cylinders.
+        let expected = format!(
+            "more than the cylinder diameter 2 · radius = {}",
             2.0 * p.radius
-        )));
+        );
+        return Err(Error::out_of_range("pitch", p.pitch, expected));
     }
     Ok(())
 }

@@ -8,11 +8,15 @@ use rand_chacha::ChaCha8Rng;
 
 use super::common::{
     Density, LatticeHint, Misalignment, Noise, Piece, Scene, axis_rotation, elbow_rotation,
-    misalign, positive, sample_pieces,
+    misalign, sample_pieces,
 };
 use crate::atlas::Shape;
+use crate::check::{self, positive};
 use crate::cloud::bounds_of;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
+
+/// The most straight runs a pipe may have.
+const MAX_PIPE_SEGMENTS: usize = 1000;
 
 /// Parameters of [`pipe`]. Lengths in metres (scene units).
 ///
@@ -141,38 +145,22 @@ fn fits(chain: &[Vec<Point3<f64>>], new: &[Point3<f64>], r: f64, h: f64) -> bool
 /// Validated sizes `(L, s, B, r)`.
 fn sizes(p: &PipeParams) -> Result<(f64, f64, f64, f64)> {
     let l = p.segment_length;
-    positive("pipe segment length", l)?;
+    positive("segment_length", l)?;
     let s = l / 2.0;
     let b = p.bend.unwrap_or(s);
     let r = p.radius.unwrap_or(0.1 * l);
-    positive("pipe bend radius", b)?;
-    positive("pipe tube radius", r)?;
-    if ((b / s) - (b / s).round()).abs() > 1e-9 {
-        return Err(Error::invalid(format!(
-            "pipe bend radius ({b}) must be a multiple of the spacing L/2 = {s}"
-        )));
+    positive("bend", b)?;
+    positive("radius", r)?;
+    check::multiple_of("bend", b, s, "segment_length / 2")?;
+    let fits = b.min(s);
+    if r >= fits {
+        // The tube must fit inside the bend and inside half a segment.
+        let expected = format!("smaller than bend and segment_length / 2 (here {fits})");
+        return Err(Error::out_of_range("radius", r, expected));
     }
-    if r >= b {
-        return Err(Error::invalid(format!(
-            "pipe tube radius ({r}) must be smaller than the bend radius ({b})"
-        )));
-    }
-    if r >= s {
-        return Err(Error::invalid(format!(
-            "pipe tube radius ({r}) must be smaller than half a segment ({s})"
-        )));
-    }
-    if p.segments == 0 || p.max_run == 0 {
-        return Err(Error::invalid(
-            "pipe needs at least one segment and max_run ≥ 1",
-        ));
-    }
-    if p.segments > 1000 {
-        return Err(Error::invalid(format!(
-            "pipe segments ({}) must be at most 1000",
-            p.segments
-        )));
-    }
+    check::at_least("segments", p.segments, 1)?;
+    check::at_most("segments", p.segments, MAX_PIPE_SEGMENTS)?;
+    check::at_least("max_run", p.max_run, 1)?;
     Ok((l, s, b, r))
 }
 

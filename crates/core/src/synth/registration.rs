@@ -7,11 +7,10 @@ use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::common::{
-    Density, LatticeHint, Noise, Piece, Scene, non_negative, positive, random_unit, sample_pieces,
-};
+use super::common::{Density, LatticeHint, Noise, Piece, Scene, random_unit, sample_pieces};
 use crate::atlas::{MeshShape, Shape, TriMesh};
-use crate::{Error, PointCloud, Pose, Primitive, Result};
+use crate::check::{self, non_negative, positive};
+use crate::{PointCloud, Pose, Primitive, Result};
 
 /// Parameters of [`registration`]. Lengths in the mesh's units.
 #[derive(Debug, Clone, PartialEq)]
@@ -79,20 +78,12 @@ pub fn registration(mesh: &MeshShape, params: &RegistrationParams) -> Result<Sce
     let shape = Shape::Mesh(mesh.clone());
     shape.validate()?;
     non_negative("translation", params.translation)?;
-    positive("outlier box", params.outlier_box)?;
+    positive("outlier_box", params.outlier_box)?;
     params.noise.validate()?;
-    if let Some((lo, hi)) = params.scale {
-        positive("scale lower bound", lo)?;
-        positive("scale upper bound", hi)?;
-        if lo > hi {
-            return Err(Error::invalid(format!("scale range ({lo}, {hi}) is empty")));
-        }
+    if let Some(range) = params.scale {
+        check::positive_range("scale", range)?;
     }
-    if params.objects == 0 {
-        return Err(Error::invalid(
-            "a registration scene needs at least one object",
-        ));
-    }
+    check::at_least("objects", params.objects, 1)?;
     let mut rng = ChaCha8Rng::seed_from_u64(params.seed);
     let k = params.objects;
     let largest = params.scale.map_or(1.0, |s| s.1) * mesh.bounding_radius();

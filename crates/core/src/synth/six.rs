@@ -5,10 +5,9 @@ use nalgebra::{Point3, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::common::{
-    LatticeHint, Scene, axis_rotation, gauss, non_negative, positive, sample_shape_local,
-};
+use super::common::{LatticeHint, Scene, axis_rotation, gauss, sample_shape_local};
 use crate::atlas::Shape;
+use crate::check::{self, non_negative, positive};
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 
 /// Which candidates the toy uses.
@@ -76,27 +75,22 @@ pub struct SixInARow {
 /// fully visible; for a cylinder only points whose outward normal faces the sensor are
 /// kept (exact visibility for a convex tube). Noise is added along each ray (range).
 pub fn six_in_a_row(params: &SixInARowParams) -> Result<SixInARow> {
-    positive("first distance", params.first)?;
+    positive("first", params.first)?;
     positive("step", params.step)?;
     positive("size", params.size)?;
     non_negative("jitter", params.jitter)?;
-    if params.true_index >= 6 {
-        return Err(Error::invalid(format!(
-            "true_index ({}) must be in 0..6",
-            params.true_index
-        )));
-    }
-    let g = params.first / params.step;
-    if (g - g.round()).abs() > 1e-9 {
-        return Err(Error::invalid(
-            "the first distance must be a multiple of the step (lattice)",
-        ));
-    }
+    check::at_most("true_index", params.true_index, 5)?;
+    check::multiple_of("first", params.first, params.step, "step")?;
     let (shape, rot) = match params.variant {
         SixVariant::Squares => (Shape::Square { side: params.size }, axis_rotation(0)),
         SixVariant::Cylinders => {
             if params.size / 4.0 >= params.first {
-                return Err(Error::invalid("the cylinders must not contain the sensor"));
+                // The cylinders must not contain the sensor.
+                let expected = format!(
+                    "more than the cylinder radius size / 4 = {}",
+                    params.size / 4.0
+                );
+                return Err(Error::out_of_range("first", params.first, expected));
             }
             (
                 Shape::Cylinder {

@@ -33,7 +33,7 @@ use crate::io::{Encoding, palette_color, write_atomic};
 use crate::{Error, PointCloud, Result, TriMesh};
 
 /// Writes `cloud` to `path` (atomically) as a PLY `vertex` element with the layout in
-/// the module docs. Fails with [`Error::Shape`] if an attribute's length differs from
+/// the module docs. Fails with [`Error::Mismatch`] if an attribute's length differs from
 /// the number of points.
 pub fn write_cloud(path: &Path, cloud: &PointCloud, encoding: Encoding) -> Result<()> {
     check_cloud(cloud)?;
@@ -84,8 +84,8 @@ pub fn write_cloud(path: &Path, cloud: &PointCloud, encoding: Encoding) -> Resul
 /// that a viewer can colour by primitive, and also colours the vertices (`uchar red,
 /// green, blue`): each vertex takes [`palette_color`] of the primitive of the first face
 /// that uses it (grey for negative primitive indices or unused vertices), which MeshLab
-/// and CloudCompare show as is. Fails with [`Error::Shape`] on a length mismatch and
-/// [`Error::InvalidArgument`] on a face index that is out of range or does not fit an
+/// and CloudCompare show as is. Fails with [`Error::Mismatch`] on a length mismatch and
+/// [`Error::IndexOutOfRange`] on a face index that is out of range or does not fit an
 /// `int`.
 pub fn write_mesh(
     path: &Path,
@@ -255,14 +255,17 @@ fn primitive_colors(mesh: &TriMesh, face_primitive: &[i32]) -> Vec<[u8; 3]> {
     colors.into_iter().map(|c| c.unwrap_or(UNCOLORED)).collect()
 }
 
-/// Fails unless `len` equals `expected`.
-fn same_len(what: &str, len: usize, expected: usize, of: &str) -> Result<()> {
+/// Fails unless there are as many `what` (`len`) as `per` (`expected`).
+fn same_len(what: &'static str, len: usize, expected: usize, per: &'static str) -> Result<()> {
     if len == expected {
         Ok(())
     } else {
-        Err(Error::Shape(format!(
-            "{what} has {len} entries but there are {expected} {of}"
-        )))
+        Err(Error::Mismatch {
+            what,
+            len,
+            per,
+            expected,
+        })
     }
 }
 
@@ -292,17 +295,8 @@ fn check_mesh(
     if let Some(c) = vertex_colors {
         same_len("vertex_colors", c.len(), mesh.vertices.len(), "vertices")?;
     }
-    let n = mesh.vertices.len();
-    for (i, f) in mesh.faces.iter().enumerate() {
-        if let Some(&v) = f
-            .iter()
-            .find(|&&v| v as usize >= n || i32::try_from(v).is_err())
-        {
-            let msg = format!("face {i} refers to vertex {v}, but the mesh has {n} vertices");
-            return Err(Error::invalid(msg));
-        }
-    }
-    Ok(())
+    // PLY `int` indices: at most i32::MAX.
+    mesh.check_indices(mesh.vertices.len().min(i32::MAX as usize + 1), "faces")
 }
 
 #[cfg(test)]
