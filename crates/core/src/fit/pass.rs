@@ -31,6 +31,39 @@ pub(super) fn refine_context<'a>(
     }
 }
 
+/// The peak memory the coefficients of `candidates` over `points` points will need, and
+/// the most samples of any template; an error when that is over the settings' budget.
+fn check_memory(
+    points: usize,
+    candidates: &CandidateSet,
+    settings: &Settings,
+) -> Result<(u64, usize)> {
+    let max_samples = candidates
+        .templates
+        .iter()
+        .map(|t| t.samples.len())
+        .max()
+        .unwrap_or(1);
+    let need = estimate_bytes(points, candidates.len(), max_samples, &settings.chamfer);
+    if need > settings.memory_budget {
+        return Err(Error::TooLarge(format!(
+            "{} points × {} candidates (β = {}) would need about {} at peak, over the \
+             memory budget of {} (by default half the machine's memory); lower --beta, \
+             use a coarser --spacing, subsample the cloud, or raise the budget \
+             (memory_budget in the Python API)",
+            points,
+            candidates.len(),
+            settings
+                .chamfer
+                .beta
+                .map_or("all".to_string(), |b| b.to_string()),
+            human_bytes(need),
+            human_bytes(settings.memory_budget)
+        )));
+    }
+    Ok((need, max_samples))
+}
+
 /// One lattice fit under `settings`, refined when `settings.refine` is set.
 pub(super) fn fit_pass(
     cloud: &PointCloud,
@@ -52,34 +85,7 @@ pub(super) fn fit_pass(
             "the lattice has no candidates near the cloud",
         ));
     }
-    let max_samples = candidates
-        .templates
-        .iter()
-        .map(|t| t.samples.len())
-        .max()
-        .unwrap_or(1);
-    let need = estimate_bytes(
-        cloud.len(),
-        candidates.len(),
-        max_samples,
-        &settings.chamfer,
-    );
-    if need > settings.memory_budget {
-        return Err(Error::TooLarge(format!(
-            "{} points × {} candidates (β = {}) would need about {} at peak, over the \
-             memory budget of {} (by default half the machine's memory); lower --beta, \
-             use a coarser --spacing, subsample the cloud, or raise the budget \
-             (memory_budget in the Python API)",
-            cloud.len(),
-            candidates.len(),
-            settings
-                .chamfer
-                .beta
-                .map_or("all".to_string(), |b| b.to_string()),
-            human_bytes(need),
-            human_bytes(settings.memory_budget)
-        )));
-    }
+    let (need, max_samples) = check_memory(cloud.len(), &candidates, &settings)?;
     progress.message(&format!(
         "{} candidates, {} samples per template at most",
         candidates.len(),

@@ -160,6 +160,46 @@ fn positive(name: &str, v: f64) -> Result<f64> {
     }
 }
 
+/// The lattice frame, the frame estimate's support and the grid origin of `o.frame`:
+/// given values as they are, otherwise estimated from local planes of the cloud.
+fn resolve_frame(
+    cloud: &PointCloud,
+    index: &PointIndex,
+    o: &FitOptions,
+    spacing: f64,
+    size: f64,
+) -> (UnitQuaternion<f64>, Option<f64>, Point3<f64>) {
+    let given_origin = match &o.frame {
+        FrameChoice::Given {
+            origin: Some(p), ..
+        } => Some(*p),
+        _ => o.origin,
+    };
+    // The frame and the grid origin need more neighbourhoods than the noise level;
+    // they are estimated only when not given.
+    let estimated = matches!(o.frame, FrameChoice::Auto)
+        || (given_origin.is_none() && !matches!(o.frame, FrameChoice::Axis));
+    let planes = if estimated {
+        local_planes(&cloud.points, index, DEFAULT_NEIGHBOURS, DEFAULT_MAX_POINTS)
+    } else {
+        Vec::new()
+    };
+    let (frame, frame_support) = match &o.frame {
+        FrameChoice::Axis => (UnitQuaternion::identity(), None),
+        FrameChoice::Given { rotation, .. } => (*rotation, None),
+        FrameChoice::Auto => match estimate_frame(&planes, o.seed) {
+            Some(FrameEstimate { rotation, support }) => (rotation, Some(support)),
+            None => (UnitQuaternion::identity(), None),
+        },
+    };
+    let origin = match (given_origin, &o.frame) {
+        (Some(p), _) => p,
+        (None, FrameChoice::Axis) => Point3::origin(),
+        (None, _) => grid_origin(&planes, &cloud.points, &frame, spacing, size),
+    };
+    (frame, frame_support, origin)
+}
+
 impl Settings {
     /// Resolves every default from the cloud (see the module docs) and validates.
     pub fn resolve(cloud: &PointCloud, index: &PointIndex, o: &FitOptions) -> Result<Settings> {
@@ -233,34 +273,7 @@ impl Settings {
         if let Some(r) = &o.refine {
             r.validate()?;
         }
-        let given_origin = match &o.frame {
-            FrameChoice::Given {
-                origin: Some(p), ..
-            } => Some(*p),
-            _ => o.origin,
-        };
-        // The frame and the grid origin need more neighbourhoods than the noise level;
-        // they are estimated only when not given.
-        let estimated = matches!(o.frame, FrameChoice::Auto)
-            || (given_origin.is_none() && !matches!(o.frame, FrameChoice::Axis));
-        let planes = if estimated {
-            local_planes(&cloud.points, index, DEFAULT_NEIGHBOURS, DEFAULT_MAX_POINTS)
-        } else {
-            Vec::new()
-        };
-        let (frame, frame_support) = match &o.frame {
-            FrameChoice::Axis => (UnitQuaternion::identity(), None),
-            FrameChoice::Given { rotation, .. } => (*rotation, None),
-            FrameChoice::Auto => match estimate_frame(&planes, o.seed) {
-                Some(FrameEstimate { rotation, support }) => (rotation, Some(support)),
-                None => (UnitQuaternion::identity(), None),
-            },
-        };
-        let origin = match (given_origin, &o.frame) {
-            (Some(p), _) => p,
-            (None, FrameChoice::Axis) => Point3::origin(),
-            (None, _) => grid_origin(&planes, &cloud.points, &frame, spacing, size),
-        };
+        let (frame, frame_support, origin) = resolve_frame(cloud, index, o, spacing, size);
         Ok(Settings {
             kinds,
             size,
