@@ -47,6 +47,20 @@ pub fn in_interval(name: &str, v: f64, interval: Interval) -> Result<()> {
     }
 }
 
+/// There are as many `what` (`len`) as `per` (`expected`): one each.
+pub fn same_len(what: &'static str, len: usize, per: &'static str, expected: usize) -> Result<()> {
+    if len == expected {
+        Ok(())
+    } else {
+        Err(Error::Mismatch {
+            what,
+            len,
+            per,
+            expected,
+        })
+    }
+}
+
 /// The count `v` is at least `min`.
 pub fn at_least(name: &str, v: usize, min: usize) -> Result<()> {
     if v >= min {
@@ -188,6 +202,13 @@ mod tests {
         assert_eq!(
             at_least("beta", 0, 1).expect_err("zero").to_string(),
             "beta must be at least 1, got 0"
+        );
+        assert!(same_len("normals", 3, "points", 3).is_ok());
+        assert_eq!(
+            same_len("normals", 2, "points", 3)
+                .expect_err("short")
+                .to_string(),
+            "length mismatch: 2 normals for 3 points (one each expected)"
         );
         assert!(at_most("segments", 1000, 1000).is_ok());
         assert!(at_most("segments", 1001, 1000).is_err());

@@ -7,7 +7,7 @@ use nalgebra::Point3;
 use rayon::prelude::*;
 
 use crate::spatial::PointIndex;
-use crate::{Error, Result};
+use crate::{Error, Result, check};
 
 /// What the loss needs to know about candidates: their finite sample sets σ_i.
 ///
@@ -59,14 +59,7 @@ pub struct SampleSets {
 impl SampleSets {
     /// Groups `samples` by `owner` (each in `0..n`). Every candidate needs ≥ 1 sample.
     pub fn new(samples: &[Point3<f64>], owner: &[usize], n: usize) -> Result<Self> {
-        if samples.len() != owner.len() {
-            return Err(Error::Mismatch {
-                what: "owners",
-                len: owner.len(),
-                per: "samples",
-                expected: samples.len(),
-            });
-        }
+        check::same_len("owners", owner.len(), "samples", samples.len())?;
         let mut counts = vec![0usize; n];
         for (k, &o) in owner.iter().enumerate() {
             if o >= n {

@@ -74,14 +74,7 @@ impl CandidateSet {
         template_of: Vec<u32>,
         poses: Vec<Pose>,
     ) -> Result<Self> {
-        if template_of.len() != poses.len() {
-            return Err(Error::Mismatch {
-                what: "template ids",
-                len: template_of.len(),
-                per: "poses",
-                expected: poses.len(),
-            });
-        }
+        check::same_len("template ids", template_of.len(), "poses", poses.len())?;
         if let Some(k) = template_of
             .iter()
             .position(|t| *t as usize >= templates.len())

@@ -19,9 +19,9 @@ use rand_chacha::ChaCha8Rng;
 
 use super::incremental::SceneState;
 use super::raytree::RayTable;
+use crate::Result;
 use crate::check::{self, Interval};
 use crate::progress::Progress;
-use crate::{Error, Result};
 
 /// Sampler settings.
 #[derive(Debug, Clone, PartialEq)]
@@ -119,14 +119,7 @@ fn check_per_candidate(
     table: &RayTable,
     range: Interval,
 ) -> Result<()> {
-    if values.len() != table.candidates() {
-        return Err(Error::Mismatch {
-            what: name,
-            len: values.len(),
-            per: "candidates",
-            expected: table.candidates(),
-        });
-    }
+    check::same_len(name, values.len(), "candidates", table.candidates())?;
     for (k, &v) in values.iter().enumerate() {
         check::in_interval(&format!("{name}[{k}]"), v, range)?;
     }

@@ -212,20 +212,13 @@ fn cell_of(options: &PriorOptions, j: usize, p: &Point3<f64>) -> Result<[i64; 3]
 }
 
 fn check_attributes(cloud: &PointCloud) -> Result<()> {
-    let n = cloud.len();
-    let bad = |what, len| {
-        Err(Error::Mismatch {
-            what,
-            len,
-            per: "points",
-            expected: n,
-        })
-    };
-    match (&cloud.labels, &cloud.normals) {
-        (Some(l), _) if l.len() != n => bad("labels", l.len()),
-        (_, Some(v)) if v.len() != n => bad("normals", v.len()),
-        _ => Ok(()),
+    if let Some(l) = &cloud.labels {
+        check::same_len("labels", l.len(), "points", cloud.len())?;
     }
+    if let Some(v) = &cloud.normals {
+        check::same_len("normals", v.len(), "points", cloud.len())?;
+    }
+    Ok(())
 }
 
 #[cfg(test)]

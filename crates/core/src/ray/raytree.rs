@@ -20,7 +20,7 @@ use rayon::prelude::*;
 use super::likelihood::{RayModel, crossing_terms, ray_log_likelihood_from_sums};
 use crate::error::{Remedy, Unit};
 use crate::spatial::PlaneIndex;
-use crate::{Error, PointCloud, Primitive, Result};
+use crate::{Error, PointCloud, Primitive, Result, check};
 
 /// Crossings more than this many along-ray deviations *beyond* the point are left out of
 /// the table: their effect on `log p` is below 10⁻³⁰ (ln g ≥ −Q(12), h ≤ φ(12)/s).
@@ -57,14 +57,7 @@ impl Rays {
                 .into(),
             needed_by: "the ray likelihood",
         })?;
-        if sensors.len() != cloud.len() {
-            return Err(Error::Mismatch {
-                what: "sensor origins",
-                len: sensors.len(),
-                per: "points",
-                expected: cloud.len(),
-            });
-        }
+        check::same_len("sensor origins", sensors.len(), "points", cloud.len())?;
         if cloud.len() > u32::MAX as usize {
             return Err(Error::OverLimit {
                 what: "the ray set".into(),
@@ -80,7 +73,7 @@ impl Rays {
             let v = p - o;
             if !v.iter().chain(o.coords.iter()).all(|c| c.is_finite()) {
                 return Err(Error::NonFinite {
-                    what: "the ray (point and sensor origin) of point".into(),
+                    what: "sensor ray of point".into(),
                     index: j,
                 });
             }
@@ -452,7 +445,12 @@ impl RayTable {
     }
 
     fn check(&self, exists: &[bool]) -> Result<()> {
-        check_existence(exists, self.candidates())
+        check::same_len(
+            "existence values",
+            exists.len(),
+            "candidates",
+            self.candidates(),
+        )
     }
 }
 
@@ -486,19 +484,6 @@ fn candidate_crossings(
     (out, seen)
 }
 
-/// An existence vector has one entry per candidate.
-fn check_existence(exists: &[bool], candidates: usize) -> Result<()> {
-    if exists.len() != candidates {
-        return Err(Error::Mismatch {
-            what: "existence values",
-            len: exists.len(),
-            per: "candidates",
-            expected: candidates,
-        });
-    }
-    Ok(())
-}
-
 /// Algorithm 1 (the naïve reference): for every ray, test every existing candidate for a
 /// crossing and sum eq. 4.10 (nats). No ray tree, no far-crossing cut-off: for tests.
 pub fn naive_log_likelihood(
@@ -508,7 +493,12 @@ pub fn naive_log_likelihood(
     model: &RayModel,
 ) -> Result<f64> {
     model.validate()?;
-    check_existence(exists, candidates.len())?;
+    check::same_len(
+        "existence values",
+        exists.len(),
+        "candidates",
+        candidates.len(),
+    )?;
     let mut total = 0.0;
     for j in 0..rays.len() {
         let (o, d, z) = (rays.origin(j), &rays.dirs[j], rays.ranges[j]);

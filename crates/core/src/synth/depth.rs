@@ -71,15 +71,8 @@ impl SensorParams {
         check::at_least("rows", self.rows, 1)?;
         positive("max_range", self.max_range)?;
         non_negative("range_noise", self.range_noise)?;
-        if let Some(l) = &self.labels
-            && l.len() != truth.len()
-        {
-            return Err(Error::Mismatch {
-                what: "labels",
-                len: l.len(),
-                per: "true primitives",
-                expected: truth.len(),
-            });
+        if let Some(l) = &self.labels {
+            check::same_len("labels", l.len(), "true primitives", truth.len())?;
         }
         for (k, pose) in self.poses.iter().enumerate() {
             check::finite(

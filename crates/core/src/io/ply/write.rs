@@ -30,7 +30,7 @@ use super::records::{
     FACE_LISTS, LABEL, NORMAL, PRIMITIVE, RGB, SENSOR, TriangleOut, VertexRecord, XYZ,
 };
 use crate::io::{Encoding, palette_color, write_atomic};
-use crate::{Error, PointCloud, Result, TriMesh};
+use crate::{Error, PointCloud, Result, TriMesh, check};
 
 /// Writes `cloud` to `path` (atomically) as a PLY `vertex` element with the layout in
 /// the module docs. Fails with [`Error::Mismatch`] if an attribute's length differs from
@@ -255,20 +255,6 @@ fn primitive_colors(mesh: &TriMesh, face_primitive: &[i32]) -> Vec<[u8; 3]> {
     colors.into_iter().map(|c| c.unwrap_or(UNCOLORED)).collect()
 }
 
-/// Fails unless there are as many `what` (`len`) as `per` (`expected`).
-fn same_len(what: &'static str, len: usize, expected: usize, per: &'static str) -> Result<()> {
-    if len == expected {
-        Ok(())
-    } else {
-        Err(Error::Mismatch {
-            what,
-            len,
-            per,
-            expected,
-        })
-    }
-}
-
 /// Checks that every attribute of `cloud` has one entry per point.
 fn check_cloud(cloud: &PointCloud) -> Result<()> {
     let n = cloud.len();
@@ -280,7 +266,7 @@ fn check_cloud(cloud: &PointCloud) -> Result<()> {
     ];
     lens.iter()
         .filter_map(|(what, len)| len.map(|l| (what, l)))
-        .try_for_each(|(what, len)| same_len(what, len, n, "points"))
+        .try_for_each(|(what, len)| check::same_len(what, len, "points", n))
 }
 
 /// Checks attribute lengths and face indices of a mesh to write.
@@ -290,10 +276,10 @@ fn check_mesh(
     vertex_colors: Option<&[[u8; 3]]>,
 ) -> Result<()> {
     if let Some(p) = face_primitive {
-        same_len("face_primitive", p.len(), mesh.faces.len(), "faces")?;
+        check::same_len("face_primitive", p.len(), "faces", mesh.faces.len())?;
     }
     if let Some(c) = vertex_colors {
-        same_len("vertex_colors", c.len(), mesh.vertices.len(), "vertices")?;
+        check::same_len("vertex_colors", c.len(), "vertices", mesh.vertices.len())?;
     }
     // PLY `int` indices: at most i32::MAX.
     mesh.check_indices(mesh.vertices.len().min(i32::MAX as usize + 1), "faces")
