@@ -106,6 +106,7 @@ pub mod atlas;
 pub mod chamfer;
 pub mod check;
 pub mod cloud;
+pub mod compact;
 pub mod error;
 pub mod fit;
 pub mod frame;
