@@ -396,7 +396,11 @@ mod tests {
             panic!("not a plane")
         };
         assert_eq!((b.outline(), b.holes()), (shape.outline(), shape.holes()));
-        assert_eq!(back.to_json(), json);
+        let again = back.to_json();
+        for key in ["type", "size", "outline", "holes"] {
+            assert_eq!(again[key], json[key], "{key}");
+        }
+        assert!(back.pose.rotation.angle_to(&p.pose.rotation) < 1e-12);
         let x = Point3::new(0.3, 0.2, -0.1);
         assert!((back.distance(&x) - p.distance(&x)).abs() < 1e-12);
         // Holes are optional; broken rings are errors.

@@ -348,3 +348,27 @@ fn planes_reject_broken_rings() {
     };
     assert!(turn(shape.outline()) > 0.0);
 }
+
+#[test]
+fn plane_primitives_export_a_mesh_and_keep_their_own_templates() {
+    let pose = crate::Pose {
+        rotation: UnitQuaternion::from_euler_angles(0.2, 0.4, -1.0),
+        translation: Vector3::new(1.0, 2.0, 3.0),
+        scale: 1.5,
+    };
+    let prim = Primitive::new(l_plane(), pose);
+    let (mesh, owner) = crate::fit::primitives_mesh(std::slice::from_ref(&prim));
+    assert!((mesh.area() - 3.12 * 2.25).abs() < 1e-9, "{}", mesh.area());
+    assert_eq!(owner.len(), mesh.faces.len());
+    assert!(mesh.vertices.iter().all(|v| prim.distance(v) < 1e-12));
+    // Two planes of equal area but different outlines are not one template.
+    let p = |x: f64, y: f64| Point2::new(x, y);
+    let wide = PlaneShape::new(vec![p(0.0, 0.0), p(2.0, 0.0), p(2.0, 0.5), p(0.0, 0.5)], vec![]);
+    let square = PlaneShape::new(vec![p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)], vec![]);
+    let planes = [wide.unwrap(), square.unwrap()]
+        .map(|s| Primitive::new(Shape::Plane(s), crate::Pose::identity()));
+    let set = crate::lattice::CandidateSet::from_primitives(&planes, 0.05).unwrap();
+    assert_eq!(set.templates.len(), 2);
+    let again = crate::lattice::CandidateSet::from_primitives(&[planes[0].clone(), planes[0].clone()], 0.05);
+    assert_eq!(again.unwrap().templates.len(), 1);
+}
