@@ -13,7 +13,7 @@
 //!
 //! | module | concept |
 //! |---|---|
-//! | [`atlas`] | primitive *types*: local-frame surfaces (disk, square, cylinder, elbow, sphere, mesh) |
+//! | [`atlas`] | primitive *types*: local-frame surfaces (disk, square, cylinder, elbow, sphere, mesh, plane) |
 //! | [`primitive`] | a type placed in the scene by a [`primitive::Pose`] |
 //! | [`surface`] | local normals, flatness and noise level by PCA of k nearest neighbours |
 //! | [`frame`] | the lattice frame: the scan's dominant axes and a grid origin on the data |

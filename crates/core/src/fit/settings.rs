@@ -321,6 +321,7 @@ impl Settings {
                         radius: self.radius,
                     },
                     ShapeKind::Mesh => Shape::Mesh(self.mesh.clone()?),
+                    ShapeKind::Plane => return None,
                 })
             })
             .collect()

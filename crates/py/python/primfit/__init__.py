@@ -222,7 +222,8 @@ class FitResult:
     primitives : list of dict
         The chosen primitives as in ``result.json``: ``type``, ``size``, ``pose``
         (``translation``, ``rotation`` quaternion ``[w, x, y, z]``, ``scale``),
-        ``existence``.
+        ``existence``; a ``"plane"`` also has ``outline`` ``[[x, y], ...]`` and
+        ``holes`` ``[[[x, y], ...], ...]`` in its local frame (z = 0).
     existence : (P,) float64 array
         Continuous existence probability of each chosen primitive.
     metrics : dict
