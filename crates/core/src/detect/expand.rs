@@ -101,6 +101,7 @@ pub fn expand(
         clutter,
         unassigned,
         noise: 0.0,
+        model_noise: 0.0,
         spacing: 0.0,
         angle: 0.0,
         voxel: None,

@@ -13,17 +13,17 @@ use std::collections::VecDeque;
 
 use super::normals::Neighbourhoods;
 
-/// The thresholds of one run of [`grow_regions`].
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// The thresholds of one run of [`grow_regions`], per point where the noise varies.
+#[derive(Debug, Clone, PartialEq)]
 pub struct GrowParams {
     /// Neighbours of a member examined for growth (the first ones of its row, itself
     /// excluded).
     pub neighbours: usize,
-    /// `cos` of the largest angle between the normals of a member and a joining
-    /// neighbour (normals are unoriented: `|n_a · n_b|` is compared).
-    pub cos_angle: f64,
-    /// A member propagates growth only if its residual is at most this (scene units).
-    pub max_residual: f64,
+    /// Per point: `cos` of the largest angle between its normal and that of a neighbour
+    /// it takes into its region (normals are unoriented: `|n_a · n_b|` is compared).
+    pub cos_angle: Vec<f64>,
+    /// Per point: it propagates growth only if its residual is at most this (scene units).
+    pub max_residual: Vec<f64>,
 }
 
 /// Regions of the points of `nb` (lists of point indices, each ascending), in the order
@@ -49,14 +49,15 @@ pub fn grow_regions(nb: &Neighbourhoods, params: &GrowParams) -> Vec<Vec<usize>>
         queue.push_back(seed);
         while let Some(cur) = queue.pop_front() {
             let normal = nb.normals[cur];
+            let cos_angle = params.cos_angle[cur];
             for &j in &nb.row(cur)[1..=take] {
                 let j = j as usize;
-                if label[j] || !usable(j) || nb.normals[j].dot(&normal).abs() < params.cos_angle {
+                if label[j] || !usable(j) || nb.normals[j].dot(&normal).abs() < cos_angle {
                     continue;
                 }
                 label[j] = true;
                 region.push(j);
-                if nb.residual[j] <= params.max_residual {
+                if nb.residual[j] <= params.max_residual[j] {
                     queue.push_back(j);
                 }
             }
@@ -88,8 +89,8 @@ mod tests {
         let nb = Neighbourhoods::new(&pts, &index, 16);
         let params = GrowParams {
             neighbours: 8,
-            cos_angle: 10f64.to_radians().cos(),
-            max_residual: 1e-3,
+            cos_angle: vec![10f64.to_radians().cos(); pts.len()],
+            max_residual: vec![1e-3; pts.len()],
         };
         let regions = grow_regions(&nb, &params);
         let big: Vec<&Vec<usize>> = regions.iter().filter(|r| r.len() > 100).collect();

@@ -38,6 +38,7 @@ pub mod cylinder;
 mod expand;
 mod grow;
 mod model;
+pub mod noise;
 mod normals;
 pub mod plane;
 mod sample;
@@ -52,12 +53,12 @@ use rayon::prelude::*;
 pub use classify::{CURVED_GAIN, Classified, MAX_RADIUS_PER_EXTENT, classify};
 pub use grow::{GrowParams, grow_regions};
 pub use model::{SurfaceModel, z_to};
+pub use noise::NoiseMap;
 pub use normals::Neighbourhoods;
-pub use sample::voxel_subsample;
+pub use sample::{voxel_grid, voxel_subsample};
 
 use crate::check;
 use crate::spatial::{PointIndex, median_spacing};
-use crate::surface::{LocalPlane, noise_sigma};
 use crate::{Error, Primitive, Result};
 use merge::{Part, merge_parts};
 use plane::Moments;
@@ -197,8 +198,13 @@ pub struct Detection {
     /// Points in no segment and no clutter list (ascending): fragments smaller than the
     /// smallest segment, and points farther than `t σ` from their segment's model.
     pub unassigned: Vec<usize>,
-    /// The noise σ used (scene units).
+    /// The noise σ over the whole cloud at the fine scale (scene units): the median
+    /// local residual of the flattest half of the samples' neighbourhoods, at least
+    /// `spacing / √12`. Region growing uses its local values ([`NoiseMap`]).
     pub noise: f64,
+    /// The noise σ models are judged against, over the whole cloud (scene units): the
+    /// larger of [`Detection::noise`] and the σ at the coarse scale (`noise.rs`).
+    pub model_noise: f64,
     /// The median nearest-neighbour distance of the input (scene units).
     pub spacing: f64,
     /// The growing angle used (radians).
@@ -242,13 +248,27 @@ pub fn detect(points: &[Point3<f64>], index: &PointIndex, options: &DetectOption
     };
     let k = options.neighbours.unwrap_or(DEFAULT_NEIGHBOURS);
     let nb = Neighbourhoods::new(&samples, sample_index, k);
-    let noise = options.noise.unwrap_or_else(|| sample_noise(&samples, &nb, spacing));
-    let angle = options.angle.unwrap_or_else(|| growing_angle(&nb, noise));
+    let radius = median_radius(&nb);
+    let pitch = voxel.unwrap_or(spacing);
+    let (fine, coarse) = match options.noise {
+        Some(s) => (NoiseMap::uniform(s), NoiseMap::uniform(s)),
+        None => (
+            NoiseMap::new(&samples, &nb, spacing, radius),
+            coarse_noise(&samples, pitch, k, spacing),
+        ),
+    };
+    let sigma: Vec<f64> = samples.iter().map(|p| fine.at(p)).collect();
+    let model_sigma: Vec<f64> = samples.iter().zip(&sigma).map(|(p, s)| coarse.at(p).max(*s)).collect();
+    let noise = fine.global();
+    let angles: Vec<f64> = match options.angle {
+        Some(a) => vec![a; samples.len()],
+        None => sigma.iter().map(|s| growing_angle(*s, radius, nb.k)).collect(),
+    };
     let tolerance = options.tolerance.unwrap_or(DEFAULT_TOLERANCE);
     let grow = GrowParams {
         neighbours: options.grow_neighbours.unwrap_or(DEFAULT_GROW_NEIGHBOURS),
-        cos_angle: angle.cos(),
-        max_residual: PROPAGATE_SIGMAS * noise,
+        cos_angle: angles.iter().map(|a| a.cos()).collect(),
+        max_residual: sigma.iter().map(|s| PROPAGATE_SIGMAS * s).collect(),
     };
     let min_points = options.min_points.unwrap_or(MIN_SEGMENT_NEIGHBOURHOODS * nb.k).max(3);
     let regions: Vec<Vec<usize>> =
@@ -256,17 +276,19 @@ pub fn detect(points: &[Point3<f64>], index: &PointIndex, options: &DetectOption
     let parts: Vec<Part> = regions
         .into_par_iter()
         .map(|ids| {
-            let sigma = segment_noise(&nb, &ids, noise);
+            let sigma = segment_noise(&nb, &model_sigma, &ids);
             let c = classify(&samples, &nb.normals, &ids, sigma, tolerance, options.spheres);
             let moments = Moments::of(&samples, &ids);
             Part { ids, model: c.model, rms: c.rms, sigma, moments }
         })
         .collect();
+    let angle = normals::median(&mut angles.clone()).unwrap_or(0.0);
     let parts = merge_parts(parts, &samples, angle.cos(), tolerance);
     let mut detection = expand::expand(
         points, &samples, &sample_ids, sample_index, &nb, parts, grow.neighbours, tolerance,
     );
     detection.noise = noise;
+    detection.model_noise = coarse.global().max(noise);
     detection.spacing = spacing;
     detection.angle = angle;
     detection.voxel = voxel;
@@ -282,6 +304,7 @@ impl Detection {
             clutter: Vec::new(),
             unassigned: (0..n).collect(),
             noise,
+            model_noise: noise,
             spacing: 0.0,
             angle: 0.0,
             voxel: None,
@@ -290,32 +313,36 @@ impl Detection {
     }
 }
 
-/// The floored noise σ of the samples: the median residual of the flattest half of the
-/// neighbourhoods ([`crate::surface::noise_level`]), at least `spacing / √12`.
-fn sample_noise(samples: &[Point3<f64>], nb: &Neighbourhoods, spacing: f64) -> f64 {
-    let planes: Vec<LocalPlane> = (0..nb.len())
-        .filter(|&i| nb.normals[i] != nalgebra::Vector3::zeros())
-        .map(|i| LocalPlane {
-            point: samples[i],
-            normal: nb.normals[i],
-            flatness: nb.flatness[i],
-            residual: nb.residual[i],
-        })
-        .collect();
-    noise_sigma(&planes, spacing)
+/// The coarse-scale noise map: neighbourhoods of `k` points of a voxel grid of
+/// [`noise::COARSE_FACTOR`] × `pitch` over `samples`.
+fn coarse_noise(samples: &[Point3<f64>], pitch: f64, k: usize, spacing: f64) -> NoiseMap {
+    let ids = voxel_grid(samples, noise::COARSE_FACTOR * pitch);
+    let coarse: Vec<Point3<f64>> = ids.iter().map(|&i| samples[i]).collect();
+    let index = PointIndex::new(&coarse);
+    let nb = Neighbourhoods::new(&coarse, &index, k);
+    NoiseMap::new(&coarse, &nb, spacing, median_radius(&nb))
 }
 
-/// The growing angle derived from σ and the neighbourhood radius (module docs), radians.
-fn growing_angle(nb: &Neighbourhoods, noise: f64) -> f64 {
+/// The median distance from a sample to its `k`-th neighbour (scene units; infinite
+/// when no neighbourhood has extent).
+fn median_radius(nb: &Neighbourhoods) -> f64 {
     let mut radii: Vec<f64> = nb.radius.iter().copied().filter(|r| *r > 0.0).collect();
-    let radius = normals::median(&mut radii).unwrap_or(f64::INFINITY);
-    let tilt = 2.0 * noise / (radius * (nb.k as f64).sqrt());
+    normals::median(&mut radii).unwrap_or(f64::INFINITY)
+}
+
+/// The growing angle at noise `sigma` for `k`-neighbourhoods of `radius` (module docs),
+/// radians.
+fn growing_angle(sigma: f64, radius: f64, k: usize) -> f64 {
+    let tilt = 2.0 * sigma / (radius * (k as f64).sqrt());
     let angle = ANGLE_SIGMAS * std::f64::consts::SQRT_2 * tilt;
     angle.clamp(MIN_ANGLE_DEG.to_radians(), MAX_ANGLE_DEG.to_radians())
 }
 
-/// A segment's noise: the median residual of its samples, at least the detection's σ.
-fn segment_noise(nb: &Neighbourhoods, ids: &[usize], noise: f64) -> f64 {
+/// A segment's noise: the median of the local σ over its samples, or the median residual
+/// of its samples where that is larger.
+fn segment_noise(nb: &Neighbourhoods, sigma: &[f64], ids: &[usize]) -> f64 {
+    let mut s: Vec<f64> = ids.iter().map(|&i| sigma[i]).collect();
     let mut r: Vec<f64> = ids.iter().map(|&i| nb.residual[i]).collect();
-    normals::median(&mut r).unwrap_or(0.0).max(noise)
+    let local = normals::median(&mut s).unwrap_or(0.0);
+    normals::median(&mut r).unwrap_or(0.0).max(local)
 }

@@ -45,6 +45,14 @@ pub fn voxel_subsample(
     Some((kept, edge))
 }
 
+/// The points of a voxel grid of edge `edge` (scene units, > 0): in each occupied voxel
+/// the point nearest its centre (ties: the lower index); indices ascending.
+pub fn voxel_grid(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
+    let mut kept = occupied(points, edge);
+    kept.sort_unstable();
+    kept
+}
+
 /// For each voxel of edge `edge` that holds a point, the index of the point nearest the
 /// voxel's centre (ties: the lower index), in no particular order.
 fn occupied(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
