@@ -34,6 +34,10 @@ const DAMPING_FACTOR: f64 = 4.0;
 /// LM stops when a step lowers the cost by less than this fraction.
 const MIN_RELATIVE_DECREASE: f64 = 1e-10;
 
+/// 2-D points whose smaller principal spread is below this fraction of the larger
+/// (squared) are collinear: no circle through them is determined.
+const COLLINEAR: f64 = 1e-12;
+
 /// A fitted cylinder.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CylinderFit {
@@ -86,6 +90,14 @@ pub fn kasa_circle(xy: &[(f64, f64)]) -> Option<((f64, f64), f64)> {
         .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
     let mut ata = nalgebra::Matrix3::<f64>::zeros();
     let mut atb = Vector3::zeros();
+    let scatter = xy.iter().fold(nalgebra::Matrix2::<f64>::zeros(), |m, &(x, y)| {
+        let d = nalgebra::Vector2::new(x - mx, y - my);
+        m + d * d.transpose()
+    });
+    let spread = scatter.symmetric_eigenvalues();
+    if !(spread.min() > COLLINEAR * spread.max()) {
+        return None;
+    }
     for &(x, y) in xy {
         let (x, y) = (x - mx, y - my);
         let row = Vector3::new(x, y, 1.0);
@@ -273,7 +285,7 @@ fn refine(points: &[Point3<f64>], start: Axis) -> Axis {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use rand::{Rng, RngExt, SeedableRng};
+    use rand::{RngExt, SeedableRng};
     use rand_distr::StandardNormal;
     use rand_chacha::ChaCha8Rng;
 

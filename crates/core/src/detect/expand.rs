@@ -2,8 +2,9 @@
 //!
 //! 1. **Fragments.** A sample left out of every segment (its region was smaller than
 //!    the smallest segment) joins the segment of one of its growing neighbours whose
-//!    model lies within `t σ` of it (the nearest such model). One pass over the labels
-//!    as they were before it, so the result does not depend on the visiting order.
+//!    model lies within `t σ` of it (the nearest such model). Each pass reads the labels
+//!    as they were before it, so the result does not depend on the visiting order;
+//!    passes repeat while samples join.
 //! 2. **Points.** Every other input point takes the segment of its nearest sample if it
 //!    lies within `t σ` of that segment's model (clutter: unconditionally); otherwise it
 //!    is unassigned.
@@ -24,6 +25,10 @@ use crate::spatial::PointIndex;
 
 /// Marks a point that is not a sample / a sample in no segment.
 const NONE: u32 = u32::MAX;
+
+/// Most passes of fragment absorption: each reaches one neighbour further, so a segment
+/// reaches at most this many growing steps into fragments.
+const MAX_ABSORB_PASSES: usize = 32;
 
 /// Builds the [`Detection`] (without its scalar fields) from the merged `parts` of the
 /// samples. `samples[s] = points[sample_ids[s]]`; `sample_index` indexes `samples`;
@@ -109,7 +114,9 @@ pub fn expand(
     }
 }
 
-/// Step 1 of the module docs: fragments join a neighbouring segment whose model fits.
+/// Step 1 of the module docs: fragments join a neighbouring segment whose model fits,
+/// pass after pass (each from the labels the previous one left), so a segment reaches
+/// along a chain of fragments, for at most [`MAX_ABSORB_PASSES`] passes.
 fn absorb_fragments(
     samples: &[Point3<f64>],
     nb: &Neighbourhoods,
@@ -119,30 +126,38 @@ fn absorb_fragments(
     tolerance: f64,
 ) {
     let take = grow_neighbours.min(nb.k.saturating_sub(1));
-    let joins: Vec<(usize, u32)> = (0..samples.len())
-        .filter(|&s| label[s] == NONE)
-        .filter_map(|s| {
-            let mut best: Option<(f64, u32)> = None;
-            for &j in &nb.row(s)[1..=take] {
-                let l = label[j as usize];
-                if l == NONE {
-                    continue;
+    let mut open: Vec<usize> = (0..samples.len()).filter(|&s| label[s] == NONE).collect();
+    for _ in 0..MAX_ABSORB_PASSES {
+        let joins: Vec<(usize, u32)> = open
+            .par_iter()
+            .filter_map(|&s| {
+                let mut best: Option<(f64, u32)> = None;
+                for &j in &nb.row(s)[1..=take] {
+                    let l = label[j as usize];
+                    if l == NONE {
+                        continue;
+                    }
+                    let part = &parts[l as usize];
+                    let Some(model) = part.model else { continue };
+                    let d = model.distance(&samples[s]);
+                    let better = best.is_none_or(|(bd, bl)| d < bd || (d == bd && l < bl));
+                    if d <= tolerance * part.sigma && better {
+                        best = Some((d, l));
+                    }
                 }
-                let part = &parts[l as usize];
-                let Some(model) = part.model else { continue };
-                let d = model.distance(&samples[s]);
-                if d <= tolerance * part.sigma && best.is_none_or(|(bd, bl)| d < bd || (d == bd && l < bl)) {
-                    best = Some((d, l));
-                }
-            }
-            best.map(|(_, l)| (s, l))
-        })
-        .collect();
-    for (s, l) in joins {
-        label[s] = l;
-        let part = &mut parts[l as usize];
-        part.ids.push(s);
-        part.moments.add(&samples[s]);
+                best.map(|(_, l)| (s, l))
+            })
+            .collect();
+        if joins.is_empty() {
+            break;
+        }
+        for (s, l) in joins {
+            label[s] = l;
+            let part = &mut parts[l as usize];
+            part.ids.push(s);
+            part.moments.add(&samples[s]);
+        }
+        open.retain(|&s| label[s] == NONE);
     }
     for part in parts.iter_mut() {
         part.ids.sort_unstable();

@@ -13,6 +13,7 @@
 //! | noise | `σ = max(σ_pca, s/√12)` ([`crate::surface::noise_sigma`]), `s` the point spacing | `surface.rs` |
 //! | regions | smoothness-constrained region growing, seeds by increasing curvature | `grow.rs` |
 //! | models | plane if it fits within `t σ`, else cylinder / sphere if markedly better, else clutter | `classify.rs`, `plane.rs`, `cylinder.rs`, `sphere.rs` |
+//! | split | a region no model explains is split by peeling its dominant plane | `split.rs` |
 //! | merge | same-type segments that one model explains within the noise become one | `merge.rs` |
 //! | expand | each non-sample point joins its nearest sample's segment if it lies within `t σ` of the model | `expand.rs` |
 //!
@@ -43,6 +44,7 @@ mod normals;
 pub mod plane;
 mod sample;
 pub mod sphere;
+mod split;
 
 #[cfg(test)]
 mod tests;
@@ -51,6 +53,7 @@ use nalgebra::Point3;
 use rayon::prelude::*;
 
 pub use classify::{CURVED_GAIN, Classified, MAX_RADIUS_PER_EXTENT, classify};
+pub use split::{MAX_SPLIT_DEPTH, PLANE_CANDIDATES};
 pub use grow::{GrowParams, grow_regions};
 pub use model::{SurfaceModel, z_to};
 pub use noise::NoiseMap;
@@ -61,7 +64,7 @@ use crate::check;
 use crate::spatial::{PointIndex, median_spacing};
 use crate::{Error, Primitive, Result};
 use merge::{Part, merge_parts};
-use plane::Moments;
+use split::Splitter;
 
 mod merge;
 
@@ -98,7 +101,7 @@ pub const MIN_ANGLE_DEG: f64 = 5.0;
 pub const MAX_ANGLE_DEG: f64 = 15.0;
 
 /// A sample propagates growth only if its residual is at most this many σ.
-pub const PROPAGATE_SIGMAS: f64 = 3.0;
+pub const PROPAGATE_SIGMAS: f64 = 2.0;
 
 /// Default smallest segment, in samples: a region must hold at least this many
 /// neighbourhoods' worth of points (× `k`) to be a surface rather than a fragment.
@@ -273,15 +276,16 @@ pub fn detect(points: &[Point3<f64>], index: &PointIndex, options: &DetectOption
     let min_points = options.min_points.unwrap_or(MIN_SEGMENT_NEIGHBOURHOODS * nb.k).max(3);
     let regions: Vec<Vec<usize>> =
         grow_regions(&nb, &grow).into_iter().filter(|r| r.len() >= min_points).collect();
-    let parts: Vec<Part> = regions
-        .into_par_iter()
-        .map(|ids| {
-            let sigma = segment_noise(&nb, &model_sigma, &ids);
-            let c = classify(&samples, &nb.normals, &ids, sigma, tolerance, options.spheres);
-            let moments = Moments::of(&samples, &ids);
-            Part { ids, model: c.model, rms: c.rms, sigma, moments }
-        })
-        .collect();
+    let splitter = Splitter {
+        samples: &samples,
+        nb: &nb,
+        model_sigma: &model_sigma,
+        tolerance,
+        spheres: options.spheres,
+        min_points,
+        neighbours: grow.neighbours,
+    };
+    let parts: Vec<Part> = regions.into_par_iter().flat_map_iter(|ids| splitter.parts(ids)).collect();
     let angle = normals::median(&mut angles.clone()).unwrap_or(0.0);
     let parts = merge_parts(parts, &samples, angle.cos(), tolerance);
     let mut detection = expand::expand(
@@ -336,13 +340,4 @@ fn growing_angle(sigma: f64, radius: f64, k: usize) -> f64 {
     let tilt = 2.0 * sigma / (radius * (k as f64).sqrt());
     let angle = ANGLE_SIGMAS * std::f64::consts::SQRT_2 * tilt;
     angle.clamp(MIN_ANGLE_DEG.to_radians(), MAX_ANGLE_DEG.to_radians())
-}
-
-/// A segment's noise: the median of the local σ over its samples, or the median residual
-/// of its samples where that is larger.
-fn segment_noise(nb: &Neighbourhoods, sigma: &[f64], ids: &[usize]) -> f64 {
-    let mut s: Vec<f64> = ids.iter().map(|&i| sigma[i]).collect();
-    let mut r: Vec<f64> = ids.iter().map(|&i| nb.residual[i]).collect();
-    let local = normals::median(&mut s).unwrap_or(0.0);
-    normals::median(&mut r).unwrap_or(0.0).max(local)
 }

@@ -146,7 +146,7 @@ mod tests {
         let v = n.cross(&u);
         let at = |a: f64, b: f64, h: f64| Point3::from(Vector3::new(5.0, -3.0, 100.0) + u * a + v * b + n * h);
         let pts: Vec<Point3<f64>> = (0..400)
-            .map(|i| at((i % 20) as f64 * 0.1, (i / 20) as f64 * 0.1, if i % 2 == 0 { 0.01 } else { -0.01 }))
+            .map(|i| at((i % 20) as f64 * 0.1, (i / 20) as f64 * 0.1, if (i + i / 20) % 2 == 0 { 0.01 } else { -0.01 }))
             .collect();
         let all: Vec<usize> = (0..400).collect();
         let whole = Moments::of(&pts, &all);

@@ -20,9 +20,10 @@ const MAX_VOXEL_PASSES: usize = 12;
 ///
 /// The voxel edge starts at `spacing` (the median nearest-neighbour distance) and grows
 /// by `√(count / cap)` until at most `cap` voxels are occupied: a surface of area `A`
-/// occupies about `A / v²` voxels of edge `v`. In each occupied voxel the point nearest
-/// the voxel's centre is kept (ties: the lower index), so the result does not depend on
-/// the thread count or on the order in which voxels are visited.
+/// occupies about `A / v²` voxels of edge `v`. In each occupied voxel the point of lowest
+/// index is kept: not the one nearest the voxel's centre, which would select points by
+/// their noise (the offset along the normal decides which point is nearest) and bias
+/// the noise estimate of the samples. The result does not depend on the thread count.
 pub fn voxel_subsample(
     points: &[Point3<f64>],
     spacing: f64,
@@ -46,31 +47,22 @@ pub fn voxel_subsample(
 }
 
 /// The points of a voxel grid of edge `edge` (scene units, > 0): in each occupied voxel
-/// the point nearest its centre (ties: the lower index); indices ascending.
+/// the point of lowest index; indices ascending.
 pub fn voxel_grid(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
     let mut kept = occupied(points, edge);
     kept.sort_unstable();
     kept
 }
 
-/// For each voxel of edge `edge` that holds a point, the index of the point nearest the
-/// voxel's centre (ties: the lower index), in no particular order.
+/// For each voxel of edge `edge` that holds a point, the lowest index of its points, in
+/// no particular order.
 fn occupied(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
-    let mut best: HashMap<[i64; 3], (usize, f64)> = HashMap::new();
+    let mut first: HashMap<[i64; 3], usize> = HashMap::new();
     for (i, p) in points.iter().enumerate() {
-        let cell = p.coords.map(|c| (c / edge).floor());
-        let centre = (cell.add_scalar(0.5)) * edge;
-        let d2 = (p.coords - centre).norm_squared();
-        let key = [cell.x as i64, cell.y as i64, cell.z as i64];
-        best.entry(key)
-            .and_modify(|b| {
-                if d2 < b.1 {
-                    *b = (i, d2);
-                }
-            })
-            .or_insert((i, d2));
+        let cell = p.coords.map(|c| (c / edge).floor() as i64);
+        first.entry([cell.x, cell.y, cell.z]).or_insert(i);
     }
-    best.into_values().map(|(i, _)| i).collect()
+    first.into_values().collect()
 }
 
 #[cfg(test)]
@@ -87,12 +79,11 @@ mod tests {
         assert!(kept.len() <= 10_000 && kept.len() > 5_000, "{}", kept.len());
         assert!(edge > 0.015 && edge < 0.03, "{edge}");
         assert!(kept.windows(2).all(|w| w[0] < w[1]));
-        // The same input in another order keeps the same points.
-        let mut rev = pts.clone();
-        rev.reverse();
-        let (back, _) = voxel_subsample(&rev, 0.01, 10_000).unwrap();
-        let mut back: Vec<usize> = back.iter().map(|i| pts.len() - 1 - i).collect();
-        back.sort_unstable();
-        assert_eq!(back.len(), kept.len());
+        // One point per voxel: no two kept points share a voxel.
+        let cells: std::collections::HashSet<[i64; 2]> = kept
+            .iter()
+            .map(|&i| [(pts[i].x / edge).floor() as i64, (pts[i].y / edge).floor() as i64])
+            .collect();
+        assert_eq!(cells.len(), kept.len());
     }
 }
