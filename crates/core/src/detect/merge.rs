@@ -1,0 +1,211 @@
+//! Merging segments that describe the same surface.
+//!
+//! **Rule (description length).** Two segments of the same type merge when **one**
+//! primitive explains their union within the noise: the union's refitted model leaves
+//! each part's points with an RMS of at most `t σ_part` (`t` the tolerance, `σ_part`
+//! the part's noise). One primitive then describes the same points as two at the same
+//! residual cost, so the shorter description wins (an MDL argument: equal data cost,
+//! one model's parameters fewer). Adjacency is **not** required: a wall split in two by
+//! an occluder in front of it is one plane; its extent (the two point sets) is left to
+//! the bounded primitive built from the points.
+//!
+//! Testing each part (not only the union) matters: a small segment tilted off a large
+//! one barely moves the union's RMS, but its own points are far from the union's plane.
+//! Cheap filters come first — normals or axes within the growing angle, radii and axis
+//! lines close — and plane unions cost O(1) from moments ([`super::plane::Moments`]).
+//!
+//! Order: segments are visited by decreasing size (ties: lower first point), each
+//! absorbing every later segment that passes, until no pair merges; the result does not
+//! depend on the thread count.
+
+use nalgebra::Point3;
+
+use super::cylinder::{CylinderFit, refit_cylinder};
+use super::plane::Moments;
+use super::SurfaceModel;
+
+/// Cylinders merge only if their radii differ by at most this fraction of the larger.
+const RADIUS_RATIO_GAP: f64 = 0.2;
+
+/// Cylinders merge only if each one's axis passes within this fraction of the larger
+/// radius of the other's axis point.
+const AXIS_OFFSET_GAP: f64 = 0.2;
+
+/// A segment under construction: its points (sample indices), model, noise and moments.
+#[derive(Debug, Clone)]
+pub struct Part {
+    /// Point indices (ascending).
+    pub ids: Vec<usize>,
+    /// The model (`None`: clutter, never merged).
+    pub model: Option<SurfaceModel>,
+    /// RMS of the points from the model (scene units).
+    pub rms: f64,
+    /// The part's noise σ (scene units).
+    pub sigma: f64,
+    /// Moments of the points.
+    pub moments: Moments,
+}
+
+/// Merges `parts` by the rule of the module docs; `cos_angle` is the cosine of the
+/// largest angle between merged normals or axes, `tolerance` is `t` (in σ).
+pub fn merge_parts(
+    mut parts: Vec<Part>,
+    points: &[Point3<f64>],
+    cos_angle: f64,
+    tolerance: f64,
+) -> Vec<Part> {
+    parts.sort_by(|a, b| b.ids.len().cmp(&a.ids.len()).then(a.ids.first().cmp(&b.ids.first())));
+    loop {
+        let mut merged_any = false;
+        let mut i = 0;
+        while i < parts.len() {
+            let mut j = i + 1;
+            while j < parts.len() {
+                if let Some(joined) = try_merge(&parts[i], &parts[j], points, cos_angle, tolerance) {
+                    parts[i] = joined;
+                    parts.remove(j);
+                    merged_any = true;
+                } else {
+                    j += 1;
+                }
+            }
+            i += 1;
+        }
+        if !merged_any {
+            return parts;
+        }
+    }
+}
+
+/// The union of `a` and `b` if one model explains it (module docs), else `None`.
+fn try_merge(a: &Part, b: &Part, points: &[Point3<f64>], cos_angle: f64, tolerance: f64) -> Option<Part> {
+    match (a.model?, b.model?) {
+        (SurfaceModel::Plane { normal: na, .. }, SurfaceModel::Plane { normal: nb, .. }) => {
+            if na.dot(&nb).abs() < cos_angle {
+                return None;
+            }
+            let mut union = a.moments;
+            union += &b.moments;
+            let fit = union.plane()?;
+            let fits = |p: &Part| p.moments.rms_about(&fit.point, &fit.normal) <= tolerance * p.sigma;
+            if !(fits(a) && fits(b)) {
+                return None;
+            }
+            Some(joined(a, b, SurfaceModel::Plane { point: fit.point, normal: fit.normal }, fit.rms, union))
+        }
+        (
+            SurfaceModel::Cylinder { point: pa, axis: aa, radius: ra, length: la },
+            SurfaceModel::Cylinder { point: pb, axis: ab, radius: rb, .. },
+        ) => {
+            let r = ra.max(rb);
+            let off = |p: &Point3<f64>, q: &Point3<f64>, axis: &nalgebra::Vector3<f64>| {
+                let d = q - p;
+                (d - axis * d.dot(axis)).norm()
+            };
+            if aa.dot(&ab).abs() < cos_angle
+                || (ra - rb).abs() > RADIUS_RATIO_GAP * r
+                || off(&pa, &pb, &aa) > AXIS_OFFSET_GAP * r
+                || off(&pb, &pa, &ab) > AXIS_OFFSET_GAP * r
+            {
+                return None;
+            }
+            let ids = union_ids(&a.ids, &b.ids);
+            let pts: Vec<Point3<f64>> = ids.iter().map(|&i| points[i]).collect();
+            let start = CylinderFit { point: pa, axis: aa, radius: ra, length: la, rms: a.rms };
+            let fit = refit_cylinder(&pts, &start)?;
+            let model = SurfaceModel::Cylinder {
+                point: fit.point,
+                axis: fit.axis,
+                radius: fit.radius,
+                length: fit.length,
+            };
+            let part_rms = |p: &Part| {
+                let ss: f64 = p.ids.iter().map(|&i| model.distance(&points[i]).powi(2)).sum();
+                (ss / p.ids.len().max(1) as f64).sqrt()
+            };
+            if part_rms(a) > tolerance * a.sigma || part_rms(b) > tolerance * b.sigma {
+                return None;
+            }
+            let mut union = a.moments;
+            union += &b.moments;
+            Some(joined(a, b, model, fit.rms, union))
+        }
+        _ => None,
+    }
+}
+
+/// The part made of `a` and `b` with `model`.
+fn joined(a: &Part, b: &Part, model: SurfaceModel, rms: f64, moments: Moments) -> Part {
+    let (na, nb) = (a.ids.len() as f64, b.ids.len() as f64);
+    Part {
+        ids: union_ids(&a.ids, &b.ids),
+        model: Some(model),
+        rms,
+        sigma: (a.sigma * na + b.sigma * nb) / (na + nb),
+        moments,
+    }
+}
+
+/// The sorted union of two ascending, disjoint index lists.
+fn union_ids(a: &[usize], b: &[usize]) -> Vec<usize> {
+    let mut out = Vec::with_capacity(a.len() + b.len());
+    let (mut i, mut j) = (0, 0);
+    while i < a.len() || j < b.len() {
+        if j >= b.len() || (i < a.len() && a[i] < b[j]) {
+            out.push(a[i]);
+            i += 1;
+        } else {
+            out.push(b[j]);
+            j += 1;
+        }
+    }
+    out
+}
+
+#[cfg(test)]
+mod tests {
+    use nalgebra::Vector3;
+
+    use super::*;
+
+    fn plane_part(points: &[Point3<f64>], ids: Vec<usize>, sigma: f64) -> Part {
+        let moments = Moments::of(points, &ids);
+        let fit = moments.plane().unwrap();
+        Part {
+            ids,
+            model: Some(SurfaceModel::Plane { point: fit.point, normal: fit.normal }),
+            rms: fit.rms,
+            sigma,
+            moments,
+        }
+    }
+
+    #[test]
+    fn coplanar_pieces_merge_and_a_step_does_not() {
+        // Three patches of z = 0 (two of them far apart) and one at z = 0.05.
+        let mut pts = Vec::new();
+        let patch = |pts: &mut Vec<Point3<f64>>, x0: f64, z: f64| {
+            let start = pts.len();
+            for i in 0..20 {
+                for j in 0..20 {
+                    let s = if (i + j) % 2 == 0 { 0.001 } else { -0.001 };
+                    pts.push(Point3::new(x0 + i as f64 * 0.01, j as f64 * 0.01, z + s));
+                }
+            }
+            (start..pts.len()).collect::<Vec<usize>>()
+        };
+        let a = patch(&mut pts, 0.0, 0.0);
+        let b = patch(&mut pts, 0.2, 0.0);
+        let c = patch(&mut pts, 2.0, 0.0);
+        let d = patch(&mut pts, 0.4, 0.05);
+        let parts: Vec<Part> = [a, b, c, d].into_iter().map(|ids| plane_part(&pts, ids, 0.001)).collect();
+        let merged = merge_parts(parts, &pts, 5f64.to_radians().cos(), 2.5);
+        let mut sizes: Vec<usize> = merged.iter().map(|p| p.ids.len()).collect();
+        sizes.sort_unstable();
+        assert_eq!(sizes, [400, 1200]);
+        let big = merged.iter().find(|p| p.ids.len() == 1200).unwrap();
+        let Some(SurfaceModel::Plane { normal, .. }) = big.model else { panic!() };
+        assert!(normal.dot(&Vector3::z()).abs() > 1.0 - 1e-9);
+        assert_eq!(union_ids(&[1, 4, 9], &[0, 5]), [0, 1, 4, 5, 9]);
+    }
+}
