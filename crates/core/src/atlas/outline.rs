@@ -81,7 +81,10 @@ pub(super) fn outlines(points: &[Point2<f64>], cell: f64) -> Result<(Vec<Rings>,
     if points.is_empty() {
         return Err(Error::EmptyCloud);
     }
-    if let Some(index) = points.iter().position(|p| !(p.x.is_finite() && p.y.is_finite())) {
+    if let Some(index) = points
+        .iter()
+        .position(|p| !(p.x.is_finite() && p.y.is_finite()))
+    {
         return Err(Error::NonFinite {
             what: "plane point".into(),
             index,
@@ -118,8 +121,8 @@ fn finish(rings: Rings, step: f64, inset: f64) -> Option<Rings> {
     let (base, checkable) = match simplified {
         Some(s) => (s, true),
         None => {
-            let small = rings.0.len() + rings.1.iter().map(Vec::len).sum::<usize>()
-                <= MAX_CHECKED_VERTICES;
+            let small =
+                rings.0.len() + rings.1.iter().map(Vec::len).sum::<usize>() <= MAX_CHECKED_VERTICES;
             (rings, small)
         }
     };
@@ -139,8 +142,11 @@ fn simplify((outline, holes): &Rings, eps: f64, step: f64) -> Option<Rings> {
     let rdp = |ring: &[Point2<f64>], eps: f64| -> Vec<Point2<f64>> {
         let ring = start_at_extreme(ring);
         let poly = to_geo(&ring, &[]).simplify(eps);
-        let mut out: Vec<Point2<f64>> =
-            poly.exterior().coords().map(|c| Point2::new(c.x, c.y)).collect();
+        let mut out: Vec<Point2<f64>> = poly
+            .exterior()
+            .coords()
+            .map(|c| Point2::new(c.x, c.y))
+            .collect();
         if out.len() > 1 && out.first() == out.last() {
             out.pop();
         }
@@ -201,7 +207,12 @@ fn square_corners(ring: Vec<Point2<f64>>, step: f64) -> Vec<Point2<f64>> {
 
 /// Where the line through `p, q` meets the line through `r, s` (`None` when they turn
 /// by less than [`CORNER_MIN_TURN`]).
-fn line_meet(p: &Point2<f64>, q: &Point2<f64>, r: &Point2<f64>, s: &Point2<f64>) -> Option<Point2<f64>> {
+fn line_meet(
+    p: &Point2<f64>,
+    q: &Point2<f64>,
+    r: &Point2<f64>,
+    s: &Point2<f64>,
+) -> Option<Point2<f64>> {
     let cross = |u: Vector2<f64>, v: Vector2<f64>| u.x * v.y - u.y * v.x;
     let (d1, d2) = (q - p, s - r);
     let denom = cross(d1, d2);
@@ -242,7 +253,10 @@ fn offset_rings((outline, holes): &Rings, d: f64) -> Rings {
         };
         offset_left(&ring, d)
     };
-    (left(outline, true), holes.iter().map(|h| left(h, false)).collect())
+    (
+        left(outline, true),
+        holes.iter().map(|h| left(h, false)).collect(),
+    )
 }
 
 /// Shifts every edge of `ring` by `d` to its left.
@@ -250,7 +264,9 @@ fn offset_left(ring: &[Point2<f64>], d: f64) -> Vec<Point2<f64>> {
     let n = ring.len();
     let normal = |i: usize| {
         let e = ring[(i + 1) % n] - ring[i];
-        Vector2::new(-e.y, e.x).try_normalize(0.0).unwrap_or_else(Vector2::zeros)
+        Vector2::new(-e.y, e.x)
+            .try_normalize(0.0)
+            .unwrap_or_else(Vector2::zeros)
     };
     (0..n)
         .map(|i| {
@@ -285,7 +301,10 @@ impl Grid {
     /// Bins `points` into cells of about `cell` (coarsened to fit [`MAX_OUTLINE_CELLS`]).
     fn new(points: &[Point2<f64>], cell: f64) -> Grid {
         let (lo, hi) = points.iter().fold(
-            (Point2::from([f64::INFINITY; 2]), Point2::from([f64::NEG_INFINITY; 2])),
+            (
+                Point2::from([f64::INFINITY; 2]),
+                Point2::from([f64::NEG_INFINITY; 2]),
+            ),
             |(lo, hi), p| (lo.inf(p), hi.sup(p)),
         );
         let extent = hi - lo;
@@ -300,7 +319,10 @@ impl Grid {
             }
             cell *= 1.01 * (total / max).sqrt();
         }
-        let (cx, cy) = (centres(extent.x, cell) as usize, centres(extent.y, cell) as usize);
+        let (cx, cy) = (
+            centres(extent.x, cell) as usize,
+            centres(extent.y, cell) as usize,
+        );
         let step = |len: f64, n: usize| if n > 1 { len / (n - 1) as f64 } else { cell };
         let step = Vector2::new(step(extent.x, cx), step(extent.y, cy));
         let (nx, ny) = (cx + 2 * MARGIN, cy + 2 * MARGIN);
@@ -341,10 +363,16 @@ impl Grid {
             let mut out = vec![false; nx * ny];
             for j in 0..ny as isize {
                 for i in 0..nx as isize {
-                    let (a, b) = ((i - di as isize, j - dj as isize), (i + di as isize, j + dj as isize));
+                    let (a, b) = (
+                        (i - di as isize, j - dj as isize),
+                        (i + di as isize, j + dj as isize),
+                    );
                     let trio = [at(a.0, a.1), at(i, j), at(b.0, b.1)];
-                    out[j as usize * nx + i as usize] =
-                        if any { trio.iter().any(|&c| c) } else { trio.iter().all(|&c| c) };
+                    out[j as usize * nx + i as usize] = if any {
+                        trio.iter().any(|&c| c)
+                    } else {
+                        trio.iter().all(|&c| c)
+                    };
                 }
             }
             out
@@ -362,7 +390,16 @@ impl Grid {
         let steps: &[(isize, isize)] = if value {
             &[(1, 0), (-1, 0), (0, 1), (0, -1)]
         } else {
-            &[(1, 0), (-1, 0), (0, 1), (0, -1), (1, 1), (1, -1), (-1, 1), (-1, -1)]
+            &[
+                (1, 0),
+                (-1, 0),
+                (0, 1),
+                (0, -1),
+                (1, 1),
+                (1, -1),
+                (-1, 1),
+                (-1, -1),
+            ]
         };
         for start in 0..nx * ny {
             if seen[start] || self.occupied[start] != value {
@@ -508,11 +545,25 @@ mod tests {
 
     #[test]
     fn grid_is_capped_and_centres_sit_on_the_extreme_points() {
-        let points = [Point2::new(-3.0, 1.0), Point2::new(7.0, 2.5), Point2::new(0.0, 1.5)];
+        let points = [
+            Point2::new(-3.0, 1.0),
+            Point2::new(7.0, 2.5),
+            Point2::new(0.0, 1.5),
+        ];
         let grid = Grid::new(&points, 1e-9);
-        assert!(grid.nx * grid.ny <= MAX_OUTLINE_CELLS, "{} × {}", grid.nx, grid.ny);
-        assert!(grid.nx * grid.ny > MAX_OUTLINE_CELLS / 2, "coarsened no more than needed");
-        let centre = |i: usize, j: usize| grid.origin + Vector2::new(i as f64 * grid.step.x, j as f64 * grid.step.y);
+        assert!(
+            grid.nx * grid.ny <= MAX_OUTLINE_CELLS,
+            "{} × {}",
+            grid.nx,
+            grid.ny
+        );
+        assert!(
+            grid.nx * grid.ny > MAX_OUTLINE_CELLS / 2,
+            "coarsened no more than needed"
+        );
+        let centre = |i: usize, j: usize| {
+            grid.origin + Vector2::new(i as f64 * grid.step.x, j as f64 * grid.step.y)
+        };
         let first = centre(MARGIN, MARGIN);
         let last = centre(grid.nx - 1 - MARGIN, grid.ny - 1 - MARGIN);
         assert!((first - Point2::new(-3.0, 1.0)).norm() < 1e-9);

@@ -87,7 +87,11 @@ pub fn plane_frame(points: &[Point3<f64>], normal_hint: Option<Vector3<f64>>) ->
         None => least_variance_direction(points, &centroid),
     };
     // A first in-plane basis, then turned so that x follows the enclosing rectangle.
-    let helper = if normal.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let helper = if normal.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
     let u0 = normal.cross(&helper).normalize();
     let v0 = normal.cross(&u0);
     let projected: MultiPoint<f64> = points
@@ -105,7 +109,10 @@ pub fn plane_frame(points: &[Point3<f64>], normal_hint: Option<Vector3<f64>>) ->
     let u = u0 * angle.cos() + v0 * angle.sin();
     let v = normal.cross(&u);
     let rotation = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[u, v, normal]));
-    Ok(Pose::new(UnitQuaternion::from_rotation_matrix(&rotation), centroid))
+    Ok(Pose::new(
+        UnitQuaternion::from_rotation_matrix(&rotation),
+        centroid,
+    ))
 }
 
 /// The plane of `points` and its outline at occupancy cell `cell` (scene units; pass a
@@ -149,7 +156,9 @@ fn least_variance_direction(points: &[Point3<f64>], centroid: &Vector3<f64>) -> 
     let eigen = cov.symmetric_eigen();
     let k = eigen.eigenvalues.imin();
     let n: Vector3<f64> = eigen.eigenvectors.column(k).into_owned();
-    let n = n.try_normalize(f64::MIN_POSITIVE).unwrap_or_else(Vector3::z);
+    let n = n
+        .try_normalize(f64::MIN_POSITIVE)
+        .unwrap_or_else(Vector3::z);
     if n[n.iamax()] < 0.0 { -n } else { n }
 }
 
@@ -161,6 +170,10 @@ fn longer_side_angle(corners: &[geo::Coord<f64>]) -> f64 {
     }
     let side = |a: geo::Coord<f64>, b: geo::Coord<f64>| (b.x - a.x, b.y - a.y);
     let (s1, s2) = (side(corners[0], corners[1]), side(corners[1], corners[2]));
-    let longer = if s1.0.hypot(s1.1) >= s2.0.hypot(s2.1) { s1 } else { s2 };
+    let longer = if s1.0.hypot(s1.1) >= s2.0.hypot(s2.1) {
+        s1
+    } else {
+        s2
+    };
     longer.1.atan2(longer.0)
 }

@@ -4,11 +4,21 @@
 //!
 //! | stage | file |
 //! |---|---|
+//! | planes, cylinders and spheres found in the data | [`crate::detect`] |
+//! | candidates: a bounded `plane` per connected part of a planar segment, the bounded primitive of a curved one | `candidates.rs` |
 //! | description length of a primitive, in loss units | `mdl.rs` |
-//! | existence of the proposed candidates | `existence.rs` |
+//! | existence of the candidates | `existence.rs` |
+//! | the whole: [`compact_model`] | `model.rs` |
 
+mod candidates;
 mod existence;
 mod mdl;
+mod model;
 
+pub use candidates::{OUTLINE_CELLS_PER_SPACING, Proposal, propose};
 pub use existence::{Existence, ExistenceOptions, decide_existence};
 pub use mdl::{description_length, primitive_cost};
+pub use model::{
+    CAP_SIGMAS, CAP_SPACINGS, CompactModel, CompactOptions, EXISTENCE_BETA, SAMPLE_SPACINGS,
+    compact_model,
+};

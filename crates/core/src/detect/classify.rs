@@ -16,10 +16,10 @@
 
 use nalgebra::{Point3, Vector3};
 
+use super::SurfaceModel;
 use super::cylinder::fit_cylinder;
 use super::plane::Moments;
 use super::sphere::fit_sphere;
-use super::SurfaceModel;
 
 /// A curved model must have at most this fraction of the plane's RMS (dimensionless):
 /// halving the residual is far beyond what the 2–3 extra parameters of a cylinder or

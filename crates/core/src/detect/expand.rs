@@ -49,7 +49,14 @@ pub fn expand(
             label[s] = k as u32;
         }
     }
-    absorb_fragments(samples, nb, &mut parts, &mut label, grow_neighbours, tolerance);
+    absorb_fragments(
+        samples,
+        nb,
+        &mut parts,
+        &mut label,
+        grow_neighbours,
+        tolerance,
+    );
     let mut sample_of = vec![NONE; points.len()];
     for (s, &i) in sample_ids.iter().enumerate() {
         sample_of[i] = s as u32;
@@ -94,12 +101,21 @@ pub fn expand(
     let mut clutter = Vec::new();
     for (ids, model) in finished {
         match model {
-            Some((model, rms)) => segments.push(Segment { points: ids, model, rms }),
+            Some((model, rms)) => segments.push(Segment {
+                points: ids,
+                model,
+                rms,
+            }),
             None if !ids.is_empty() => clutter.push(ids),
             None => {}
         }
     }
-    segments.sort_by(|a, b| b.points.len().cmp(&a.points.len()).then(a.points.first().cmp(&b.points.first())));
+    segments.sort_by(|a, b| {
+        b.points
+            .len()
+            .cmp(&a.points.len())
+            .then(a.points.first().cmp(&b.points.first()))
+    });
     clutter.sort_by(|a, b| b.len().cmp(&a.len()).then(a.first().cmp(&b.first())));
     Detection {
         segments,
@@ -168,11 +184,27 @@ fn absorb_fragments(
 fn refit(points: &[Point3<f64>], ids: &[usize], m: &SurfaceModel) -> (SurfaceModel, f64) {
     let pts: Vec<Point3<f64>> = ids.iter().map(|&i| points[i]).collect();
     let model = match *m {
-        SurfaceModel::Plane { .. } => Moments::of(points, ids)
-            .plane()
-            .map(|f| SurfaceModel::Plane { point: f.point, normal: f.normal }),
-        SurfaceModel::Cylinder { point, axis, radius, length } => {
-            let start = CylinderFit { point, axis, radius, length, rms: 0.0 };
+        SurfaceModel::Plane { .. } => {
+            Moments::of(points, ids)
+                .plane()
+                .map(|f| SurfaceModel::Plane {
+                    point: f.point,
+                    normal: f.normal,
+                })
+        }
+        SurfaceModel::Cylinder {
+            point,
+            axis,
+            radius,
+            length,
+        } => {
+            let start = CylinderFit {
+                point,
+                axis,
+                radius,
+                length,
+                rms: 0.0,
+            };
             refit_cylinder(&pts, &start).map(|c| SurfaceModel::Cylinder {
                 point: c.point,
                 axis: c.axis,
@@ -180,9 +212,10 @@ fn refit(points: &[Point3<f64>], ids: &[usize], m: &SurfaceModel) -> (SurfaceMod
                 length: c.length,
             })
         }
-        SurfaceModel::Sphere { .. } => {
-            fit_sphere(&pts).map(|s| SurfaceModel::Sphere { centre: s.centre, radius: s.radius })
-        }
+        SurfaceModel::Sphere { .. } => fit_sphere(&pts).map(|s| SurfaceModel::Sphere {
+            centre: s.centre,
+            radius: s.radius,
+        }),
     }
     .unwrap_or(*m);
     let ss: f64 = pts.iter().map(|p| model.distance(p).powi(2)).sum();

@@ -20,9 +20,9 @@
 
 use nalgebra::Point3;
 
+use super::SurfaceModel;
 use super::cylinder::{CylinderFit, refit_cylinder};
 use super::plane::Moments;
-use super::SurfaceModel;
 
 /// Cylinders merge only if their radii differ by at most this fraction of the larger.
 const RADIUS_RATIO_GAP: f64 = 0.2;
@@ -54,14 +54,20 @@ pub fn merge_parts(
     cos_angle: f64,
     tolerance: f64,
 ) -> Vec<Part> {
-    parts.sort_by(|a, b| b.ids.len().cmp(&a.ids.len()).then(a.ids.first().cmp(&b.ids.first())));
+    parts.sort_by(|a, b| {
+        b.ids
+            .len()
+            .cmp(&a.ids.len())
+            .then(a.ids.first().cmp(&b.ids.first()))
+    });
     loop {
         let mut merged_any = false;
         let mut i = 0;
         while i < parts.len() {
             let mut j = i + 1;
             while j < parts.len() {
-                if let Some(joined) = try_merge(&parts[i], &parts[j], points, cos_angle, tolerance) {
+                if let Some(joined) = try_merge(&parts[i], &parts[j], points, cos_angle, tolerance)
+                {
                     parts[i] = joined;
                     parts.remove(j);
                     merged_any = true;
@@ -78,7 +84,13 @@ pub fn merge_parts(
 }
 
 /// The union of `a` and `b` if one model explains it (module docs), else `None`.
-fn try_merge(a: &Part, b: &Part, points: &[Point3<f64>], cos_angle: f64, tolerance: f64) -> Option<Part> {
+fn try_merge(
+    a: &Part,
+    b: &Part,
+    points: &[Point3<f64>],
+    cos_angle: f64,
+    tolerance: f64,
+) -> Option<Part> {
     match (a.model?, b.model?) {
         (SurfaceModel::Plane { normal: na, .. }, SurfaceModel::Plane { normal: nb, .. }) => {
             if na.dot(&nb).abs() < cos_angle {
@@ -87,15 +99,35 @@ fn try_merge(a: &Part, b: &Part, points: &[Point3<f64>], cos_angle: f64, toleran
             let mut union = a.moments;
             union += &b.moments;
             let fit = union.plane()?;
-            let fits = |p: &Part| p.moments.rms_about(&fit.point, &fit.normal) <= tolerance * p.sigma;
+            let fits =
+                |p: &Part| p.moments.rms_about(&fit.point, &fit.normal) <= tolerance * p.sigma;
             if !(fits(a) && fits(b)) {
                 return None;
             }
-            Some(joined(a, b, SurfaceModel::Plane { point: fit.point, normal: fit.normal }, fit.rms, union))
+            Some(joined(
+                a,
+                b,
+                SurfaceModel::Plane {
+                    point: fit.point,
+                    normal: fit.normal,
+                },
+                fit.rms,
+                union,
+            ))
         }
         (
-            SurfaceModel::Cylinder { point: pa, axis: aa, radius: ra, length: la },
-            SurfaceModel::Cylinder { point: pb, axis: ab, radius: rb, .. },
+            SurfaceModel::Cylinder {
+                point: pa,
+                axis: aa,
+                radius: ra,
+                length: la,
+            },
+            SurfaceModel::Cylinder {
+                point: pb,
+                axis: ab,
+                radius: rb,
+                ..
+            },
         ) => {
             let r = ra.max(rb);
             let off = |p: &Point3<f64>, q: &Point3<f64>, axis: &nalgebra::Vector3<f64>| {
@@ -111,7 +143,13 @@ fn try_merge(a: &Part, b: &Part, points: &[Point3<f64>], cos_angle: f64, toleran
             }
             let ids = union_ids(&a.ids, &b.ids);
             let pts: Vec<Point3<f64>> = ids.iter().map(|&i| points[i]).collect();
-            let start = CylinderFit { point: pa, axis: aa, radius: ra, length: la, rms: a.rms };
+            let start = CylinderFit {
+                point: pa,
+                axis: aa,
+                radius: ra,
+                length: la,
+                rms: a.rms,
+            };
             let fit = refit_cylinder(&pts, &start)?;
             let model = SurfaceModel::Cylinder {
                 point: fit.point,
@@ -120,7 +158,11 @@ fn try_merge(a: &Part, b: &Part, points: &[Point3<f64>], cos_angle: f64, toleran
                 length: fit.length,
             };
             let part_rms = |p: &Part| {
-                let ss: f64 = p.ids.iter().map(|&i| model.distance(&points[i]).powi(2)).sum();
+                let ss: f64 = p
+                    .ids
+                    .iter()
+                    .map(|&i| model.distance(&points[i]).powi(2))
+                    .sum();
                 (ss / p.ids.len().max(1) as f64).sqrt()
             };
             if part_rms(a) > tolerance * a.sigma || part_rms(b) > tolerance * b.sigma {
@@ -173,7 +215,10 @@ mod tests {
         let fit = moments.plane().unwrap();
         Part {
             ids,
-            model: Some(SurfaceModel::Plane { point: fit.point, normal: fit.normal }),
+            model: Some(SurfaceModel::Plane {
+                point: fit.point,
+                normal: fit.normal,
+            }),
             rms: fit.rms,
             sigma,
             moments,
@@ -198,13 +243,18 @@ mod tests {
         let b = patch(&mut pts, 0.2, 0.0);
         let c = patch(&mut pts, 2.0, 0.0);
         let d = patch(&mut pts, 0.4, 0.05);
-        let parts: Vec<Part> = [a, b, c, d].into_iter().map(|ids| plane_part(&pts, ids, 0.001)).collect();
+        let parts: Vec<Part> = [a, b, c, d]
+            .into_iter()
+            .map(|ids| plane_part(&pts, ids, 0.001))
+            .collect();
         let merged = merge_parts(parts, &pts, 5f64.to_radians().cos(), 2.5);
         let mut sizes: Vec<usize> = merged.iter().map(|p| p.ids.len()).collect();
         sizes.sort_unstable();
         assert_eq!(sizes, [400, 1200]);
         let big = merged.iter().find(|p| p.ids.len() == 1200).unwrap();
-        let Some(SurfaceModel::Plane { normal, .. }) = big.model else { panic!() };
+        let Some(SurfaceModel::Plane { normal, .. }) = big.model else {
+            panic!()
+        };
         assert!(normal.dot(&Vector3::z()).abs() > 1.0 - 1e-9);
         assert_eq!(union_ids(&[1, 4, 9], &[0, 5]), [0, 1, 4, 5, 9]);
     }

@@ -124,9 +124,16 @@ mod tests {
             assert_eq!(nb.row(i)[0] as usize, i);
             assert!(nb.normals[i].dot(&n).abs() > 1.0 - 1e-9);
             assert!(nb.flatness[i] < 1e-12 && nb.residual[i] < 1e-9);
-            assert!(nb.radius[i] > 0.015 && nb.radius[i] < 0.05, "{}", nb.radius[i]);
+            assert!(
+                nb.radius[i] > 0.015 && nb.radius[i] < 0.05,
+                "{}",
+                nb.radius[i]
+            );
         }
-        let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let one_thread = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
         let again = one_thread.install(|| Neighbourhoods::new(&pts, &index, 16));
         assert_eq!(again.neighbours, nb.neighbours);
         assert_eq!(again.normals, nb.normals);
