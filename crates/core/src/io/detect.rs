@@ -158,7 +158,7 @@ pub(crate) fn detect(path: &Path) -> Result<Kind> {
         )),
         (Some(named), Some(found)) if named != found => {
             let msg = format!(
-                "the name says {} but the content is a {} file",
+                "the name says {} but the content is {}",
                 named.name(),
                 found.name()
             );
