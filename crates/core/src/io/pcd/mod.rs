@@ -67,7 +67,7 @@ impl Schema {
                 Error::format(path, msg)
             })?;
         }
-        let normal = match ["normal_x", "normal_y", "normal_z"].map(|n| single(n)) {
+        let normal = match ["normal_x", "normal_y", "normal_z"].map(single) {
             [Ok(Some(a)), Ok(Some(b)), Ok(Some(c))] => Some([a, b, c]),
             _ => None,
         };
