@@ -36,6 +36,7 @@ mod budget;
 mod gaps;
 mod mcmc;
 mod pass;
+mod recentre;
 mod result;
 mod settings;
 #[cfg(test)]
@@ -68,6 +69,9 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         .any(|p| !p.coords.iter().all(|c| c.is_finite()))
     {
         return Err(Error::invalid("the cloud has non-finite coordinates"));
+    }
+    if let Some(shift) = recentre::local_shift(cloud) {
+        return recentre::fit_shifted(cloud, options, progress, shift);
     }
     let index = PointIndex::new(&cloud.points);
     let settings = Settings::resolve(cloud, &index, options)?;
