@@ -64,6 +64,7 @@ impl PyFitOptions {
             Some((v, f)) => Some(MeshShape::new("python", convert::mesh(&v, &f)?).py()?),
             None => None,
         };
+        let d = FitOptions::lattice();
         Ok(PyFitOptions(FitOptions {
             kinds,
             size,
@@ -73,11 +74,11 @@ impl PyFitOptions {
             origin: origin.map(|[x, y, z]| Point3::new(x, y, z)),
             sample_spacing,
             model: PointModel::parse(model).py()?,
-            alpha: convert::limit("alpha", alpha)?,
-            beta: convert::limit("beta", beta)?,
+            alpha: convert::limit("alpha", alpha)?.unwrap_or(d.alpha),
+            beta: convert::limit("beta", beta)?.unwrap_or(d.beta),
             cap,
-            primitive_weight: weights.map(|w| w.0),
-            point_weight: weights.map(|w| w.1),
+            primitive_weight: weights.map_or(d.primitive_weight, |w| w.0),
+            point_weight: weights.map_or(d.point_weight, |w| w.1),
             mesh,
             solver: SolverOptions {
                 parameterization: Parameterization::parse(parameterization).py()?,
@@ -87,7 +88,7 @@ impl PyFitOptions {
             },
             memory_budget,
             seed,
-            ..Default::default()
+            ..d
         }))
     }
 }

@@ -158,5 +158,6 @@ pub(super) fn fit_pass(
         existence,
         solution,
         stats,
+        mcmc: None,
     })
 }

@@ -23,7 +23,7 @@ fn corner() -> PointCloud {
 fn fits_an_aligned_corner_with_squares() {
     let options = FitOptions {
         size: Some(1.0),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     let result = fit(&corner(), &options, &Silent).unwrap();
     assert_eq!(result.settings.spacing, 0.5);
@@ -53,18 +53,18 @@ fn bad_options_are_errors() {
     let c = corner();
     let bad = FitOptions {
         size: Some(-1.0),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     assert!(fit(&c, &bad, &Silent).is_err());
     let bad = FitOptions {
         cap: Some(f64::NAN),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     assert!(fit(&c, &bad, &Silent).is_err());
-    assert!(fit(&PointCloud::default(), &FitOptions::default(), &Silent).is_err());
+    assert!(fit(&PointCloud::default(), &FitOptions::lattice(), &Silent).is_err());
     let tiny = FitOptions {
         memory_budget: Some(10),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     assert!(matches!(fit(&c, &tiny, &Silent), Err(Error::TooLarge(_))));
 }
@@ -99,12 +99,12 @@ fn memory_budget_covers_the_peak_and_names_the_settings() {
     );
 
     let c = corner();
-    let fitted = fit(&c, &FitOptions::default(), &Silent).unwrap();
+    let fitted = fit(&c, &FitOptions::lattice(), &Silent).unwrap();
     let need = fitted.stats.estimated_bytes;
     assert!(need >= fitted.stats.coefficient_bytes as u64);
     let just_under = FitOptions {
         memory_budget: Some(need - 1),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     let Err(Error::TooLarge(msg)) = fit(&c, &just_under, &Silent) else {
         panic!("a budget below the estimate must refuse");
@@ -120,7 +120,7 @@ fn memory_budget_covers_the_peak_and_names_the_settings() {
     }
     let exact = FitOptions {
         memory_budget: Some(need),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     assert!(fit(&c, &exact, &Silent).is_ok());
 }
