@@ -35,7 +35,7 @@ pub fn to_py(e: Error) -> PyErr {
         | Error::Format { .. }
         | Error::InvalidArgument(_) => PyValueError::new_err(message),
         // Refused before allocating: the caller can shrink the problem.
-        Error::OverLimit { .. } | Error::TooLarge(_) => PyValueError::new_err(message),
+        Error::OverLimit { .. } => PyValueError::new_err(message),
         // `root` never returns an item wrapper.
         Error::Item { .. } => PyValueError::new_err(message),
     }

@@ -39,6 +39,9 @@ const STEPS_PER_CANDIDATE: usize = 20;
 /// The default burn-in is the proposals after it divided by this.
 const STEPS_PER_BURN_IN: usize = 5;
 
+/// Who needs what the errors of this module name as missing.
+const METHOD: &str = "the mcmc method";
+
 /// What the `mcmc` sampler did (written to `result.json` under `settings.mcmc`).
 #[derive(Debug, Clone, PartialEq)]
 pub struct McmcRun {
@@ -72,7 +75,11 @@ pub(super) fn fit_mcmc(
     let index = PointIndex::new(&cloud.points);
     let settings = Settings::resolve(cloud, &index, options)?;
     let MethodSettings::Mcmc(mcmc) = &settings.method else {
-        return Err(Error::invalid("fit_mcmc needs the mcmc method"));
+        return Err(Error::Unknown {
+            what: "method of an mcmc fit",
+            value: settings.method.name().into(),
+            expected: "mcmc",
+        });
     };
     let model = mcmc.ray;
 
@@ -157,19 +164,22 @@ pub(super) fn fit_mcmc(
 /// The rays of a non-empty, finite cloud with sensor origins.
 fn check_cloud(cloud: &PointCloud) -> Result<Rays> {
     if cloud.is_empty() {
-        return Err(Error::invalid("the cloud is empty"));
+        return Err(Error::EmptyCloud);
     }
     if cloud.sensors.is_none() {
-        return Err(Error::invalid(
-            "--method mcmc needs each point's sensor origin: give the PLY vertex properties \
-             sensor_x, sensor_y, sensor_z (or use --method chamfer)",
-        ));
+        return Err(Error::Missing {
+            what: "each point's sensor origin (the PLY vertex properties sensor_x, sensor_y, \
+                   sensor_z)"
+                .into(),
+            needed_by: METHOD,
+        });
     }
     let rays = Rays::from_cloud(cloud)?;
     if rays.is_empty() {
-        return Err(Error::invalid(
-            "every point coincides with its sensor origin: no rays",
-        ));
+        return Err(Error::Missing {
+            what: "a ray: a point apart from its sensor origin".into(),
+            needed_by: METHOD,
+        });
     }
     Ok(rays)
 }
@@ -194,10 +204,12 @@ fn supported_candidates(
     let (kept, prior): (Vec<Primitive>, Vec<f64>) =
         all.into_iter().zip(prior).filter(|(_, p)| *p > 0.0).unzip();
     if kept.is_empty() {
-        return Err(Error::invalid(
-            "no candidate is supported by the prior (no points near any lattice node with a \
-             matching label/normal)",
-        ));
+        return Err(Error::Missing {
+            what: "a candidate supported by the prior (points near a lattice node with a \
+                   matching label or normal)"
+                .into(),
+            needed_by: METHOD,
+        });
     }
     Ok((kept, prior))
 }

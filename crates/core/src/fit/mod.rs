@@ -74,14 +74,17 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         return mcmc::fit_mcmc(cloud, options, progress);
     }
     if cloud.is_empty() {
-        return Err(Error::invalid("the cloud is empty"));
+        return Err(Error::EmptyCloud);
     }
-    if cloud
+    if let Some(index) = cloud
         .points
         .iter()
-        .any(|p| !p.coords.iter().all(|c| c.is_finite()))
+        .position(|p| !p.coords.iter().all(|c| c.is_finite()))
     {
-        return Err(Error::invalid("the cloud has non-finite coordinates"));
+        return Err(Error::NonFinite {
+            what: "point".into(),
+            index,
+        });
     }
     let index = PointIndex::new(&cloud.points);
     let settings = Settings::resolve(cloud, &index, options)?;

@@ -21,7 +21,7 @@ use crate::spatial::{PointIndex, median_spacing};
 use crate::surface::{
     DEFAULT_MAX_POINTS, DEFAULT_NEIGHBOURS, NOISE_MAX_POINTS, local_planes, noise_level,
 };
-use crate::{Error, PointCloud, Result};
+use crate::{Error, PointCloud, Result, check};
 
 use super::options::DEFAULT_MEMORY_SHARE;
 
@@ -145,14 +145,111 @@ fn nice_floor(x: f64) -> f64 {
     }
 }
 
+/// The default `size` is the cloud's bounding-box diagonal divided by this (then rounded
+/// down to 1, 2 or 5 × 10^k).
+const DIAGONALS_PER_SIZE: f64 = 8.0;
+/// The default `spacing` is `size` divided by this (the thesis's hallway: 1 m squares on a
+/// 0.5 m lattice).
+const SIZES_PER_SPACING: f64 = 2.0;
+/// The default tube `radius` is `size` divided by this.
+const SIZES_PER_RADIUS: f64 = 10.0;
+/// The default `cap` is at least this many noise σ.
+const CAP_NOISE_SIGMAS: f64 = 5.0;
+/// The default `sample_spacing` is at most `size` divided by this …
+const SAMPLES_PER_SIZE: f64 = 16.0;
+/// … and, with tubes, at most their circumference divided by this.
+const SAMPLES_PER_CIRCUMFERENCE: f64 = 12.0;
+/// Points probed for the cloud's median point spacing.
+const SPACING_PROBES: usize = 2000;
+/// Without a measurable point spacing it is taken as the diagonal divided by this.
+const DIAGONALS_PER_POINT_SPACING: f64 = 100.0;
+
+/// `v`, checked to be a positive finite length named `name`.
 fn positive(name: &str, v: f64) -> Result<f64> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(Error::invalid(format!(
-            "--{name} must be a positive length, got {v}"
-        )))
+    check::positive(name, v)?;
+    Ok(v)
+}
+
+/// The lengths of [`Settings`] with their defaults from the cloud (see the module docs
+/// of [`super`]), checked.
+struct Lengths {
+    size: f64,
+    spacing: f64,
+    radius: f64,
+    bend: f64,
+    cap: f64,
+    sample_spacing: f64,
+}
+
+impl Lengths {
+    /// The lengths of `o` for a cloud of bounding-box `diagonal`, median point spacing
+    /// `point_spacing` and noise σ `noise`.
+    fn resolve(o: &FitOptions, diagonal: f64, point_spacing: f64, noise: f64) -> Result<Self> {
+        let size = o
+            .size
+            .unwrap_or_else(|| nice_floor(diagonal / DIAGONALS_PER_SIZE));
+        let size = positive("size", size)?;
+        let default_spacing = match &o.mesh {
+            Some(m) if o.kinds.iter().all(|k| *k == ShapeKind::Mesh) => m.bounding_radius(),
+            _ => size / SIZES_PER_SPACING,
+        };
+        let spacing = positive("spacing", o.spacing.unwrap_or(default_spacing))?;
+        let radius = positive("radius", o.radius.unwrap_or(size / SIZES_PER_RADIUS))?;
+        let bend = positive("bend", o.bend.unwrap_or(spacing))?;
+        let cap = o.cap.unwrap_or(spacing.max(CAP_NOISE_SIGMAS * noise));
+        check::non_negative("cap", cap)?;
+        let tubes = o
+            .kinds
+            .iter()
+            .any(|k| matches!(k, ShapeKind::Cylinder | ShapeKind::Elbow));
+        let mut sample_spacing = size / SAMPLES_PER_SIZE;
+        if tubes {
+            let circumference = std::f64::consts::TAU * radius;
+            sample_spacing = sample_spacing.min(circumference / SAMPLES_PER_CIRCUMFERENCE);
+        }
+        let sample_spacing = o
+            .sample_spacing
+            .unwrap_or(sample_spacing.max(point_spacing));
+        let sample_spacing = positive("sample_spacing", sample_spacing)?;
+        Ok(Lengths {
+            size,
+            spacing,
+            radius,
+            bend,
+            cap,
+            sample_spacing,
+        })
     }
+}
+
+/// The loss options of `o` with `d_cap = cap²`, checked.
+fn chamfer_options(o: &FitOptions, cap: f64) -> Result<ChamferOptions> {
+    let chamfer = ChamferOptions {
+        model: o.model,
+        alpha: match o.model {
+            PointModel::Independent => o.alpha.get(),
+            PointModel::Existence => None,
+        },
+        beta: o.beta.get(),
+        cap: cap * cap,
+        surface_distance: o.model == PointModel::Existence,
+        primitive_weight: o.primitive_weight,
+        point_weight: o.point_weight,
+    };
+    chamfer.validate()?;
+    Ok(chamfer)
+}
+
+/// The bounding-box diagonal of a non-empty cloud whose points do not all coincide.
+fn extent(cloud: &PointCloud) -> Result<f64> {
+    let (lo, hi) = cloud.bounds().ok_or(Error::EmptyCloud)?;
+    let diagonal = (hi - lo).norm();
+    if diagonal.is_nan() || diagonal <= 0.0 {
+        let expected = "positive: the points must not all coincide";
+        let name = "the cloud's extent (bounding-box diagonal)";
+        return Err(Error::out_of_range(name, diagonal, expected));
+    }
+    Ok(diagonal)
 }
 
 /// The lattice frame, the frame estimate's support and the grid origin of `o.frame`:
@@ -198,16 +295,9 @@ fn resolve_frame(
 impl Settings {
     /// Resolves every default from the cloud (see the module docs) and validates.
     pub fn resolve(cloud: &PointCloud, index: &PointIndex, o: &FitOptions) -> Result<Settings> {
-        let (lo, hi) = cloud
-            .bounds()
-            .ok_or_else(|| Error::invalid("the cloud is empty"))?;
-        let diagonal = (hi - lo).norm();
-        if diagonal.is_nan() || diagonal <= 0.0 {
-            return Err(Error::invalid(
-                "the cloud has no extent (all points coincide)",
-            ));
-        }
-        let point_spacing = median_spacing(&cloud.points, index, 2000).unwrap_or(diagonal / 100.0);
+        let diagonal = extent(cloud)?;
+        let point_spacing = median_spacing(&cloud.points, index, SPACING_PROBES)
+            .unwrap_or(diagonal / DIAGONALS_PER_POINT_SPACING);
         let noise = noise_level(&local_planes(
             &cloud.points,
             index,
@@ -215,55 +305,25 @@ impl Settings {
             NOISE_MAX_POINTS,
         ))
         .unwrap_or(0.0);
-
         if o.kinds.is_empty() {
-            return Err(Error::invalid("at least one primitive type is needed"));
+            let expected = "at least one primitive type";
+            return Err(Error::out_of_range("kinds", "none", expected));
         }
-        let kinds = o.kinds.clone();
-        let size = positive("size", o.size.unwrap_or_else(|| nice_floor(diagonal / 8.0)))?;
-        let default_spacing = match &o.mesh {
-            Some(m) if kinds.iter().all(|k| *k == ShapeKind::Mesh) => m.bounding_radius(),
-            _ => size / 2.0,
-        };
-        let spacing = positive("spacing", o.spacing.unwrap_or(default_spacing))?;
-        let radius = positive("radius", o.radius.unwrap_or(size / 10.0))?;
-        let bend = positive("bend", o.bend.unwrap_or(spacing))?;
-        let cap = o.cap.unwrap_or(spacing.max(5.0 * noise));
-        if !(cap.is_finite() && cap >= 0.0) {
-            return Err(Error::invalid(format!(
-                "--cap must be a finite distance ≥ 0, got {cap}"
-            )));
+        let Lengths {
+            size,
+            spacing,
+            radius,
+            bend,
+            cap,
+            sample_spacing,
+        } = Lengths::resolve(o, diagonal, point_spacing, noise)?;
+        if o.kinds.contains(&ShapeKind::Mesh) && o.mesh.is_none() {
+            return Err(Error::Missing {
+                what: "a mesh (the `mesh` option)".into(),
+                needed_by: "the mesh primitive type",
+            });
         }
-        let tubes = kinds
-            .iter()
-            .any(|k| matches!(k, ShapeKind::Cylinder | ShapeKind::Elbow));
-        let mut sample_spacing = size / 16.0;
-        if tubes {
-            sample_spacing = sample_spacing.min(std::f64::consts::TAU * radius / 12.0);
-        }
-        let sample_spacing = positive(
-            "sample-spacing",
-            o.sample_spacing
-                .unwrap_or(sample_spacing.max(point_spacing)),
-        )?;
-        if kinds.contains(&ShapeKind::Mesh) && o.mesh.is_none() {
-            return Err(Error::invalid(
-                "the mesh type needs a mesh (--mesh-model FILE.ply)",
-            ));
-        }
-        let chamfer = ChamferOptions {
-            model: o.model,
-            alpha: match o.model {
-                PointModel::Independent => o.alpha.get(),
-                PointModel::Existence => None,
-            },
-            beta: o.beta.get(),
-            cap: cap * cap,
-            surface_distance: o.model == PointModel::Existence,
-            primitive_weight: o.primitive_weight,
-            point_weight: o.point_weight,
-        };
-        chamfer.validate()?;
+        let chamfer = chamfer_options(o, cap)?;
         if let Some(r) = &o.refine {
             r.validate()?;
         }
@@ -275,7 +335,7 @@ impl Settings {
         };
         let (frame, frame_support, origin) = resolve_frame(cloud, index, o, spacing, size);
         Ok(Settings {
-            kinds,
+            kinds: o.kinds.clone(),
             size,
             radius,
             bend,
