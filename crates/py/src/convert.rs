@@ -185,6 +185,26 @@ pub fn limit(name: &str, v: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Limit>
     }
 }
 
+/// `N` finite numbers from any iterable (a list, a tuple, a numpy array); `None` stays
+/// `None`.
+pub fn floats<const N: usize>(
+    name: &str,
+    v: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<[f64; N]>> {
+    let Some(v) = v.filter(|v| !v.is_none()) else {
+        return Ok(None);
+    };
+    let values: Vec<f64> = v
+        .try_iter()
+        .and_then(|items| items.map(|x| x?.extract::<f64>()).collect())
+        .map_err(|_| value_error(format!("{name} must be {N} numbers, got {v}")))?;
+    let array: [f64; N] = values
+        .try_into()
+        .map_err(|_| value_error(format!("{name} must be {N} numbers, got {v}")))?;
+    check_finite(name, &array)?;
+    Ok(Some(array))
+}
+
 /// A triangle mesh from `(V, 3)` vertices and `(F, 3)` integer faces.
 pub fn mesh(
     vertices: &PyReadonlyArray2<'_, f64>,
