@@ -16,6 +16,7 @@ use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
 use primfit_core::{Limit, chamfer::PointModel as Model};
 
+use super::sizes::SizeArgs;
 use super::{Output, check_output, parse_limit, parse_pair, parse_point};
 use crate::progress::Bars;
 
@@ -23,6 +24,14 @@ use crate::progress::Bars;
 /// (printed with `-v`, and written to the result's `settings`); every other default is
 /// the library's ([`FitOptions::default`]).
 #[derive(Debug, Args)]
+#[command(
+    mut_arg("size", |a| a.help(
+        "Candidate main extent in scene units: square side, disk/sphere diameter, cylinder \
+         length [default: bounding-box diagonal / 8, rounded down to 1, 2 or 5 × 10^k]"
+    )),
+    mut_arg("radius", |a| a.help("Tube radius of cylinders and elbows [default: size / 10]")),
+    mut_arg("bend", |a| a.help("Elbow bend radius (centre line) [default: spacing]")),
+)]
 pub struct FitArgs {
     /// The scan: a PLY point cloud (ascii or binary; float or double coordinates).
     pub scene: PathBuf,
@@ -38,16 +47,9 @@ pub struct FitArgs {
     /// Primitive types: comma-separated from square, disk, cylinder, elbow, sphere, mesh.
     #[arg(long, value_delimiter = ',', default_value = DEFAULT_KIND.name())]
     pub types: Vec<String>,
-    /// Candidate main extent in scene units: square side, disk/sphere diameter, cylinder
-    /// length [default: bounding-box diagonal / 8, rounded down to 1, 2 or 5 × 10^k].
-    #[arg(long)]
-    pub size: Option<f64>,
-    /// Tube radius of cylinders and elbows [default: size / 10].
-    #[arg(long)]
-    pub radius: Option<f64>,
-    /// Elbow bend radius (centre line) [default: spacing].
-    #[arg(long)]
-    pub bend: Option<f64>,
+    /// Candidate sizes.
+    #[command(flatten)]
+    pub sizes: SizeArgs,
     /// Lattice translation step [default: size / 2].
     #[arg(long)]
     pub spacing: Option<f64>,
@@ -176,9 +178,9 @@ impl FitArgs {
             kinds,
             frame,
             refine,
-            size: self.size,
-            radius: self.radius,
-            bend: self.bend,
+            size: self.sizes.size,
+            radius: self.sizes.radius,
+            bend: self.sizes.bend,
             spacing: self.spacing,
             origin: self.origin.map(|[x, y, z]| Point3::new(x, y, z)),
             sample_spacing: self.sample_spacing,

@@ -8,6 +8,7 @@ use primfit_core::Limit;
 pub mod eval;
 pub mod fit;
 pub mod register;
+pub mod sizes;
 pub mod synth;
 
 /// How much to print.
