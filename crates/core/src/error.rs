@@ -128,9 +128,6 @@ pub enum Error {
     },
     /// Any other invalid input, as a sentence (only where no variant above fits).
     InvalidArgument(String),
-    /// A size limit as a sentence. Deprecated: use [`Error::OverLimit`]; kept until the
-    /// `fit` module is converted.
-    TooLarge(String),
 }
 
 /// What the amounts of [`Error::OverLimit`] count.
@@ -294,7 +291,6 @@ impl Error {
                 path.display()
             ),
             Error::InvalidArgument(msg) => write!(f, "invalid argument: {msg}"),
-            Error::TooLarge(msg) => write!(f, "too large: {msg}"),
         }
     }
 }

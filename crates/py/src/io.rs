@@ -92,7 +92,25 @@ pub fn write_ply(
     sensors: Option<PyReadonlyArray2<'_, f64>>,
     ascii: bool,
 ) -> PyResult<()> {
-    let points = convert::points("points", &points, true)?;
+    let cloud = cloud_arrays(points, normals, colors, labels, sensors, true)?;
+    pool::detached(py, || io::write_cloud(&path, &cloud, encoding(ascii)))?.py()
+}
+
+/// A cloud from its arrays (checked: shapes, one entry per point, finite coordinates);
+/// empty only with `allow_empty`.
+pub fn cloud_arrays(
+    points: PyReadonlyArray2<'_, f64>,
+    normals: Option<PyReadonlyArray2<'_, f64>>,
+    colors: Option<PyReadonlyArray2<'_, u8>>,
+    labels: Option<PyReadonlyArray1<'_, i32>>,
+    sensors: Option<PyReadonlyArray2<'_, f64>>,
+    allow_empty: bool,
+) -> PyResult<PointCloud> {
+    let points = convert::points(
+        if allow_empty { "points" } else { "cloud" },
+        &points,
+        allow_empty,
+    )?;
     let j = points.len();
     let normals = match normals {
         Some(n) => Some(
@@ -118,6 +136,12 @@ pub fn write_ply(
         None => None,
     };
     let sensors = match sensors {
+        Some(s) if s.shape()[0] != j => {
+            return Err(PyValueError::new_err(format!(
+                "sensors must have shape ({j}, 3), got {:?}",
+                s.shape()
+            )));
+        }
         Some(s) => Some(convert::points("sensors", &s, true)?),
         None => None,
     };
@@ -128,7 +152,7 @@ pub fn write_ply(
         labels,
         sensors,
     };
-    pool::detached(py, || io::write_cloud(&path, &cloud, encoding(ascii)))?.py()
+    Ok(cloud)
 }
 
 /// Reads a PLY triangle mesh: `(vertices (V, 3), faces (F, 3) int64)`.

@@ -59,7 +59,7 @@ def test_fitted_mesh_round_trip(tmp_path):
     a = np.arange(20) * 0.05 + 0.025
     u, v = (m.ravel() for m in np.meshgrid(a, a, indexing="ij"))
     cloud = np.stack([u, v, np.zeros_like(u)], axis=1)
-    result = primfit.fit(cloud, size=1.0)
+    result = primfit.fit(cloud, size=1.0, frame="axis", refine=False)  # squares on the lattice
     assert len(result) >= 1
     for ascii in (False, True):
         path = tmp_path / f"fitted{int(ascii)}.ply"
@@ -72,7 +72,10 @@ def test_fitted_mesh_round_trip(tmp_path):
     # Plain dicts work too, and a mesh read back can serve as the `mesh` type.
     primfit.write_mesh(tmp_path / "dicts.ply", result.primitives[:1])
     vertices, faces = primfit.read_mesh(tmp_path / "dicts.ply")
-    again = primfit.fit(cloud, types=["mesh"], mesh_model=(vertices - vertices.mean(axis=0), faces), spacing=0.5)
+    again = primfit.fit(
+        cloud, types=["mesh"], mesh_model=(vertices - vertices.mean(axis=0), faces), spacing=0.5,
+        frame="axis", refine=False,
+    )
     assert again.primitives
 
 
