@@ -12,12 +12,13 @@ use nalgebra::Point3;
 use crate::chamfer::{ChamferOptions, Coefficients};
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
-use crate::solve::{SolverOptions, solve};
+use crate::chamfer::LossValue;
+use crate::solve::{Solution, SolverOptions, solve};
 use crate::spatial::PointIndex;
 use crate::{Primitive, Result, check};
 
 /// What [`decide_existence`] found for each candidate, in the candidates' order.
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone)]
 pub struct Existence {
     /// Decided existence (after thresholding and polish).
     pub exists: Vec<bool>,
@@ -26,6 +27,9 @@ pub struct Existence {
     pub probability: Vec<f64>,
     /// The binary loss of the decided scene, description lengths included.
     pub loss: f64,
+    /// The solver's output, over all candidates (a dominated candidate: probability 0,
+    /// absent).
+    pub solution: Solution,
 }
 
 /// How [`decide_existence`] scores candidates.
@@ -52,12 +56,18 @@ pub fn decide_existence(
     check::same_len("costs", cost.len(), "candidates", candidates.len())?;
     let chamfer = &options.chamfer;
     let n = candidates.len();
-    let nothing = points.len() as f64 * chamfer.cap * chamfer.point_weight;
+    let point = points.len() as f64 * chamfer.cap;
+    let nothing = LossValue {
+        primitive: 0.0,
+        point,
+        total: point * chamfer.point_weight,
+    };
     if n == 0 {
         return Ok(Existence {
             exists: Vec::new(),
             probability: Vec::new(),
-            loss: nothing,
+            loss: nothing.total,
+            solution: Solution::nothing(0, nothing),
         });
     }
     let set = CandidateSet::from_primitives(candidates, options.sample_spacing)?;
@@ -72,18 +82,22 @@ pub fn decide_existence(
         return Ok(Existence {
             exists,
             probability,
-            loss: nothing,
+            loss: nothing.total,
+            solution: Solution::nothing(n, nothing),
         });
     }
-    let solution = solve(&coefficients, &options.solver, progress)?;
+    let mut solution = solve(&coefficients, &options.solver, progress)?;
     for (k, &i) in reduced.kept.iter().enumerate() {
         exists[i] = solution.exists[k];
         probability[i] = solution.probability[k];
     }
+    solution.exists.clone_from(&exists);
+    solution.probability.clone_from(&probability);
     Ok(Existence {
         exists,
         probability,
         loss: solution.binary.total,
+        solution,
     })
 }
 

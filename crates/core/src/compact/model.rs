@@ -10,7 +10,7 @@ use super::mdl::primitive_cost;
 use crate::chamfer::ChamferOptions;
 use crate::detect::{DetectOptions, Detection, detect};
 use crate::progress::Progress;
-use crate::solve::SolverOptions;
+use crate::solve::{Solution, SolverOptions};
 use crate::spatial::PointIndex;
 use crate::{Primitive, Result};
 
@@ -57,6 +57,8 @@ pub struct CompactModel {
     pub detection: Detection,
     /// Candidates proposed from the segments.
     pub proposed: usize,
+    /// The existence solver's output over the proposed candidates.
+    pub solution: Solution,
     /// The cap used (scene units).
     pub cap: f64,
     /// The sample spacing used (scene units).
@@ -137,6 +139,7 @@ pub fn compact_model(
         existence,
         detection,
         proposed: proposals.len(),
+        solution: decision.solution,
         cap,
         sample_spacing,
         detect_seconds,
