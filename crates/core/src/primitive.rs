@@ -271,9 +271,10 @@ impl Primitive {
                     .ok_or_else(|| Error::json("size.source", "the name of the mesh's PLY file"))?;
                 Shape::Mesh(load_mesh(source)?)
             }
-            ShapeKind::Plane => {
-                Shape::Plane(PlaneShape::from_rings_json(v.get("outline"), v.get("holes"))?)
-            }
+            ShapeKind::Plane => Shape::Plane(PlaneShape::from_rings_json(
+                v.get("outline"),
+                v.get("holes"),
+            )?),
         };
         shape.validate()?;
         let pose = Pose::from_json(v.get("pose").unwrap_or(&Value::Null))?;
@@ -417,7 +418,10 @@ mod tests {
         ] {
             let mut v = json.clone();
             v[field] = bad.clone();
-            assert!(Primitive::from_json(&v, &|_| unreachable!()).is_err(), "{field}: {bad}");
+            assert!(
+                Primitive::from_json(&v, &|_| unreachable!()).is_err(),
+                "{field}: {bad}"
+            );
         }
     }
 

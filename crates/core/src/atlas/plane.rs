@@ -20,6 +20,10 @@ use super::planar::plane_ray;
 use crate::error::Unit;
 use crate::{Error, Result};
 
+/// A polygon as rings of local 2-D points: `(outline, holes)`, each ring open (first
+/// vertex not repeated).
+pub(super) type Rings = (Vec<Point2<f64>>, Vec<Vec<Point2<f64>>>);
+
 /// Most vertices a plane may have over all its rings: the validity check of a polygon
 /// is quadratic in them (16 Ki vertices, about 10⁸ segment tests).
 pub const MAX_PLANE_VERTICES: usize = 1 << 14;
@@ -90,7 +94,9 @@ impl PlaneShape {
         let (outline, holes) = check_rings(outline, holes)?;
         let polygon = to_geo(&outline, &holes);
         if let Err(e) = polygon.check_validation() {
-            return Err(Error::invalid(format!("plane outline is not a valid polygon: {e}")));
+            return Err(Error::invalid(format!(
+                "plane outline is not a valid polygon: {e}"
+            )));
         }
         Self::from_valid(outline, holes)
     }
@@ -120,7 +126,10 @@ impl PlaneShape {
             .collect();
         let bounding_radius = outline.iter().map(|v| v.coords.norm()).fold(0.0, f64::max);
         let bounds = outline.iter().fold(
-            (Point2::from([f64::INFINITY; 2]), Point2::from([f64::NEG_INFINITY; 2])),
+            (
+                Point2::from([f64::INFINITY; 2]),
+                Point2::from([f64::NEG_INFINITY; 2]),
+            ),
             |(lo, hi), v| (lo.inf(v), hi.sup(v)),
         );
         let inner = PlaneData {
@@ -235,9 +244,13 @@ impl PlaneShape {
         for j in 0..ny {
             let y = y0 + j as f64 * spacing;
             crossings.clear();
-            crossings.extend(self.inner.edges.iter().filter_map(|[a, b]| {
-                ((a.y > y) != (b.y > y)).then(|| a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y))
-            }));
+            crossings.extend(
+                self.inner
+                    .edges
+                    .iter()
+                    .filter(|[a, b]| (a.y > y) != (b.y > y))
+                    .map(|[a, b]| a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y)),
+            );
             crossings.sort_by(f64::total_cmp);
             for span in crossings.chunks_exact(2) {
                 // Columns i with x0 + i·spacing in [span[0], span[1]).
@@ -270,7 +283,8 @@ impl PlaneShape {
     /// The rings as JSON: `(outline, holes)` with `outline = [[x, y], …]` and `holes =
     /// [[[x, y], …], …]` (local units, first vertex not repeated).
     pub fn rings_json(&self) -> (Value, Value) {
-        let ring = |r: &[Point2<f64>]| Value::from(r.iter().map(|v| vec![v.x, v.y]).collect::<Vec<_>>());
+        let ring =
+            |r: &[Point2<f64>]| Value::from(r.iter().map(|v| vec![v.x, v.y]).collect::<Vec<_>>());
         let holes = self.inner.holes.iter().map(|h| ring(h)).collect::<Vec<_>>();
         (ring(&self.inner.outline), Value::from(holes))
     }
@@ -301,24 +315,29 @@ fn cells(length: f64, spacing: f64) -> usize {
 /// One ring from JSON: an array of at least 3 `[x, y]` number pairs.
 fn ring_from_json(v: Option<&Value>, field: &str) -> Result<Vec<Point2<f64>>> {
     let expected = "an array of [x, y] number pairs";
-    let list = v.and_then(Value::as_array).ok_or_else(|| Error::json(field, expected))?;
+    let list = v
+        .and_then(Value::as_array)
+        .ok_or_else(|| Error::json(field, expected))?;
     list.iter()
         .enumerate()
         .map(|(k, xy)| match xy.as_array().map(Vec::as_slice) {
             Some([x, y]) => match (x.as_f64(), y.as_f64()) {
                 (Some(x), Some(y)) => Ok(Point2::new(x, y)),
-                _ => Err(Error::json(format!("{field}[{k}]"), "a pair of numbers [x, y]")),
+                _ => Err(Error::json(
+                    format!("{field}[{k}]"),
+                    "a pair of numbers [x, y]",
+                )),
             },
-            _ => Err(Error::json(format!("{field}[{k}]"), "a pair of numbers [x, y]")),
+            _ => Err(Error::json(
+                format!("{field}[{k}]"),
+                "a pair of numbers [x, y]",
+            )),
         })
         .collect()
 }
 
 /// The cheap checks of [`PlaneShape::new`]; returns the rings without a closing vertex.
-fn check_rings(
-    outline: Vec<Point2<f64>>,
-    holes: Vec<Vec<Point2<f64>>>,
-) -> Result<(Vec<Point2<f64>>, Vec<Vec<Point2<f64>>>)> {
+fn check_rings(outline: Vec<Point2<f64>>, holes: Vec<Vec<Point2<f64>>>) -> Result<Rings> {
     let outline = open(outline);
     let holes: Vec<_> = holes.into_iter().map(open).collect();
     let total = outline.len() + holes.iter().map(Vec::len).sum::<usize>();
@@ -331,11 +350,14 @@ fn check_rings(
             remedies: Vec::new(),
         });
     }
-    for (name, ring) in std::iter::once(("plane outline", &outline))
-        .chain(holes.iter().map(|h| ("plane hole", h)))
+    for (name, ring) in
+        std::iter::once(("plane outline", &outline)).chain(holes.iter().map(|h| ("plane hole", h)))
     {
         crate::check::at_least(&format!("{name} vertices"), ring.len(), 3)?;
-        if let Some(index) = ring.iter().position(|v| !(v.x.is_finite() && v.y.is_finite())) {
+        if let Some(index) = ring
+            .iter()
+            .position(|v| !(v.x.is_finite() && v.y.is_finite()))
+        {
             return Err(Error::NonFinite {
                 what: format!("{name} vertex"),
                 index,
@@ -380,7 +402,8 @@ fn ring_edges(ring: &[Point2<f64>]) -> impl Iterator<Item = [Point2<f64>; 2]> + 
 
 /// The rings as a `geo` polygon (closed line strings).
 pub(super) fn to_geo(outline: &[Point2<f64>], holes: &[Vec<Point2<f64>>]) -> Polygon<f64> {
-    let line = |r: &[Point2<f64>]| LineString::from(r.iter().map(|v| (v.x, v.y)).collect::<Vec<_>>());
+    let line =
+        |r: &[Point2<f64>]| LineString::from(r.iter().map(|v| (v.x, v.y)).collect::<Vec<_>>());
     Polygon::new(line(outline), holes.iter().map(|h| line(h)).collect())
 }
 

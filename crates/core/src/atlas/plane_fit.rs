@@ -21,22 +21,19 @@ impl PlaneShape {
     }
 
     /// One plane per connected part of `points` (local 2-D coordinates, local units),
-    /// largest area first.
-    ///
-    /// The points are binned into an occupancy grid of cell `cell` (cell centres on the
-    /// points' bounding box), gaps up to two cells wide are closed, parts of fewer than
-    /// [`super::outline::MIN_COMPONENT_CELLS`] cells dropped and holes of fewer than
-    /// [`super::outline::MIN_HOLE_CELLS`] cells filled; the boundary is traced by
-    /// marching squares at iso-level ½ (half a cell beyond the outermost occupied cell
-    /// centres), moved inward by half of (cell − point spacing) so that it ends where the
-    /// sampled surface ends, and simplified with a tolerance of half a cell. A grid of
-    /// more than [`super::outline::MAX_OUTLINE_CELLS`] cells is coarsened until it fits
-    /// (the outline is then correspondingly coarser). Linear in points and cells.
+    /// largest area first, traced on an occupancy grid of cell `cell` (same units; pass
+    /// a few point spacings; the steps are documented in `atlas/outline.rs`): gaps up to two cells wide
+    /// closed, parts of fewer than [`crate::atlas::MIN_COMPONENT_CELLS`] cells dropped,
+    /// holes of fewer than [`crate::atlas::MIN_HOLE_CELLS`] cells filled, the boundary
+    /// simplified to within about half a cell and ending half a point spacing beyond the
+    /// outermost points. A grid of more than [`crate::atlas::MAX_OUTLINE_CELLS`] cells is
+    /// coarsened until it fits (the outline is then correspondingly coarser, and points
+    /// sparse at the coarser cell may leave no part). Linear in points and cells.
     ///
     /// Errors: no points ([`Error::EmptyCloud`]), a non-finite point
     /// ([`Error::NonFinite`]), `cell` not positive and finite ([`Error::OutOfRange`]),
-    /// no part of at least the minimum size, or an outline with more than
-    /// [`super::MAX_PLANE_VERTICES`] vertices.
+    /// no part of at least the minimum size ([`Error::InvalidArgument`]), or an outline
+    /// with more than [`crate::atlas::MAX_PLANE_VERTICES`] vertices ([`Error::OverLimit`]).
     pub fn parts_from_points(points: &[Point2<f64>], cell: f64) -> Result<Vec<PlaneShape>> {
         let (polygons, _cell) = super::outline::outlines(points, cell)?;
         polygons
@@ -87,7 +84,11 @@ pub fn plane_frame(points: &[Point3<f64>], normal_hint: Option<Vector3<f64>>) ->
         None => least_variance_direction(points, &centroid),
     };
     // A first in-plane basis, then turned so that x follows the enclosing rectangle.
-    let helper = if normal.x.abs() < 0.9 { Vector3::x() } else { Vector3::y() };
+    let helper = if normal.x.abs() < 0.9 {
+        Vector3::x()
+    } else {
+        Vector3::y()
+    };
     let u0 = normal.cross(&helper).normalize();
     let v0 = normal.cross(&u0);
     let projected: MultiPoint<f64> = points
@@ -105,7 +106,10 @@ pub fn plane_frame(points: &[Point3<f64>], normal_hint: Option<Vector3<f64>>) ->
     let u = u0 * angle.cos() + v0 * angle.sin();
     let v = normal.cross(&u);
     let rotation = Rotation3::from_matrix_unchecked(Matrix3::from_columns(&[u, v, normal]));
-    Ok(Pose::new(UnitQuaternion::from_rotation_matrix(&rotation), centroid))
+    Ok(Pose::new(
+        UnitQuaternion::from_rotation_matrix(&rotation),
+        centroid,
+    ))
 }
 
 /// The plane of `points` and its outline at occupancy cell `cell` (scene units; pass a
@@ -149,7 +153,9 @@ fn least_variance_direction(points: &[Point3<f64>], centroid: &Vector3<f64>) -> 
     let eigen = cov.symmetric_eigen();
     let k = eigen.eigenvalues.imin();
     let n: Vector3<f64> = eigen.eigenvectors.column(k).into_owned();
-    let n = n.try_normalize(f64::MIN_POSITIVE).unwrap_or_else(Vector3::z);
+    let n = n
+        .try_normalize(f64::MIN_POSITIVE)
+        .unwrap_or_else(Vector3::z);
     if n[n.iamax()] < 0.0 { -n } else { n }
 }
 
@@ -161,6 +167,10 @@ fn longer_side_angle(corners: &[geo::Coord<f64>]) -> f64 {
     }
     let side = |a: geo::Coord<f64>, b: geo::Coord<f64>| (b.x - a.x, b.y - a.y);
     let (s1, s2) = (side(corners[0], corners[1]), side(corners[1], corners[2]));
-    let longer = if s1.0.hypot(s1.1) >= s2.0.hypot(s2.1) { s1 } else { s2 };
+    let longer = if s1.0.hypot(s1.1) >= s2.0.hypot(s2.1) {
+        s1
+    } else {
+        s2
+    };
     longer.1.atan2(longer.0)
 }

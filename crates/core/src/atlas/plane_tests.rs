@@ -74,7 +74,12 @@ fn measure(shape: &PlaneShape, points: &[Point2<f64>], true_area: f64) -> Outcom
     let worst_overhang = std::iter::once(shape.outline())
         .chain(shape.holes().iter().map(Vec::as_slice))
         .flatten()
-        .map(|v| points.iter().map(|p| (p - v).norm()).fold(f64::INFINITY, f64::min))
+        .map(|v| {
+            points
+                .iter()
+                .map(|p| (p - v).norm())
+                .fold(f64::INFINITY, f64::min)
+        })
         .fold(0.0, f64::max);
     Outcome {
         area_error: shape.area() / true_area - 1.0,
@@ -85,9 +90,23 @@ fn measure(shape: &PlaneShape, points: &[Point2<f64>], true_area: f64) -> Outcom
     }
 }
 
-fn check_outline(what: &str, shape: &PlaneShape, points: &[Point2<f64>], area: f64, max_vertices: usize, holes: usize) {
+fn check_outline(
+    what: &str,
+    shape: &PlaneShape,
+    points: &[Point2<f64>],
+    area: f64,
+    max_vertices: usize,
+    holes: usize,
+) {
     let m = measure(shape, points, area);
-    eprintln!("{what}: outline {:?}", shape.outline().iter().map(|v| (v.x, v.y)).collect::<Vec<_>>());
+    eprintln!(
+        "{what}: outline {:?}",
+        shape
+            .outline()
+            .iter()
+            .map(|v| (v.x, v.y))
+            .collect::<Vec<_>>()
+    );
     eprintln!(
         "{what}: area error {:+.2} %, {} outline vertices, {} holes, worst point outside {:.4}, worst vertex overhang {:.4} (cell {CELL})",
         100.0 * m.area_error,
@@ -96,13 +115,32 @@ fn check_outline(what: &str, shape: &PlaneShape, points: &[Point2<f64>], area: f
         m.worst_outside,
         m.worst_overhang
     );
-    assert!(m.area_error.abs() < 0.03, "{what}: area off by {:.2} %", 100.0 * m.area_error);
-    assert!(m.outline_vertices <= max_vertices, "{what}: {} vertices", m.outline_vertices);
+    assert!(
+        m.area_error.abs() < 0.03,
+        "{what}: area off by {:.2} %",
+        100.0 * m.area_error
+    );
+    assert!(
+        m.outline_vertices <= max_vertices,
+        "{what}: {} vertices",
+        m.outline_vertices
+    );
     assert_eq!(m.holes, holes, "{what}: holes");
-    assert!(m.worst_outside <= CELL, "{what}: a point {} outside", m.worst_outside);
-    assert!(m.worst_overhang <= CELL, "{what}: outline {} beyond the points", m.worst_overhang);
+    assert!(
+        m.worst_outside <= CELL,
+        "{what}: a point {} outside",
+        m.worst_outside
+    );
+    assert!(
+        m.worst_overhang <= CELL,
+        "{what}: outline {} beyond the points",
+        m.worst_overhang
+    );
     let mesh_area = shape.mesh().area();
-    assert!((mesh_area - shape.area()).abs() <= 1e-9 * shape.area(), "{what}: mesh area {mesh_area}");
+    assert!(
+        (mesh_area - shape.area()).abs() <= 1e-9 * shape.area(),
+        "{what}: mesh area {mesh_area}"
+    );
 }
 
 #[test]
@@ -141,7 +179,9 @@ fn outline_of_a_rectangle_turned_37_degrees_in_its_own_coordinates() {
 
 #[test]
 fn small_components_and_holes_are_cleaned_up() {
-    let mut points = scan(1.1, 0.0, 5, |x, y| rectangle(x, y) && (x - 0.5).hypot(y) > 0.012);
+    let mut points = scan(1.1, 0.0, 5, |x, y| {
+        rectangle(x, y) && (x - 0.5).hypot(y) > 0.012
+    });
     // A stray pair of points far away.
     points.extend([Point2::new(3.0, 3.0), Point2::new(3.001, 3.0)]);
     let parts = PlaneShape::parts_from_points(&points, CELL).unwrap();
@@ -153,25 +193,46 @@ fn small_components_and_holes_are_cleaned_up() {
     let parts = PlaneShape::parts_from_points(&two, CELL).unwrap();
     assert_eq!(parts.len(), 2);
     assert!(parts[0].area() > parts[1].area());
-    assert!((parts[0].area() / (0.8 * 1.2) - 1.0).abs() < 0.04, "{}", parts[0].area());
+    assert!(
+        (parts[0].area() / (0.8 * 1.2) - 1.0).abs() < 0.04,
+        "{}",
+        parts[0].area()
+    );
 }
 
 #[test]
 fn outline_inputs_are_checked() {
     let ok = [Point2::new(0.0, 0.0)];
-    assert!(matches!(PlaneShape::from_points(&[], CELL), Err(Error::EmptyCloud)));
+    assert!(matches!(
+        PlaneShape::from_points(&[], CELL),
+        Err(Error::EmptyCloud)
+    ));
     let nan = [Point2::new(0.0, f64::NAN)];
-    assert!(matches!(PlaneShape::from_points(&nan, CELL), Err(Error::NonFinite { index: 0, .. })));
+    assert!(matches!(
+        PlaneShape::from_points(&nan, CELL),
+        Err(Error::NonFinite { index: 0, .. })
+    ));
     for bad in [0.0, -1.0, f64::NAN, f64::INFINITY] {
-        assert!(matches!(PlaneShape::from_points(&ok, bad), Err(Error::OutOfRange { .. })), "{bad}");
+        assert!(
+            matches!(
+                PlaneShape::from_points(&ok, bad),
+                Err(Error::OutOfRange { .. })
+            ),
+            "{bad}"
+        );
     }
     // Scattered points far apart at a fine cell: nothing connected enough.
-    let sparse: Vec<_> = (0..20).map(|k| Point2::new(k as f64, (k * k) as f64)).collect();
+    let sparse: Vec<_> = (0..20)
+        .map(|k| Point2::new(k as f64, (k * k) as f64))
+        .collect();
     assert!(PlaneShape::from_points(&sparse, 0.01).is_err());
     // An absurdly fine cell is coarsened to the grid cap, not allocated: this returns at
     // once (here with no part, as the points are sparse at the coarsened cell).
     let square = scan(0.2, 0.0, 8, |_, _| true);
-    assert!(matches!(PlaneShape::from_points(&square, 1e-9), Err(Error::InvalidArgument(_))));
+    assert!(matches!(
+        PlaneShape::from_points(&square, 1e-9),
+        Err(Error::InvalidArgument(_))
+    ));
 }
 
 /// The truth of a synthetic 3-D plane: a 2 × 1.2 rectangle with a 0.6 × 0.4 hole, long
@@ -210,7 +271,10 @@ fn fit_plane_recovers_a_tilted_turned_holed_rectangle() {
     let prim = fit_plane_primitive(&points, None, CELL).unwrap();
     let shape = plane(&prim.shape);
     let (n_true, x_true) = (truth.rotation * Vector3::z(), truth.rotation * Vector3::x());
-    let (n, x) = (prim.pose.rotation * Vector3::z(), prim.pose.rotation * Vector3::x());
+    let (n, x) = (
+        prim.pose.rotation * Vector3::z(),
+        prim.pose.rotation * Vector3::x(),
+    );
     let normal_deg = n.dot(&n_true).abs().min(1.0).acos().to_degrees();
     let axis_deg = x.dot(&x_true).abs().min(1.0).acos().to_degrees();
     let local: Vec<Point2<f64>> = points
@@ -228,7 +292,14 @@ fn fit_plane_recovers_a_tilted_turned_holed_rectangle() {
     assert!(axis_deg < 1.0, "in-plane axis off by {axis_deg}°");
     assert!(mean_distance < noise, "{mean_distance}");
     assert!((prim.pose.translation - truth.centre).norm() < 0.01);
-    check_outline("3-D holed rectangle at 37°", shape, &local, 2.4 - 0.24, 6, 1);
+    check_outline(
+        "3-D holed rectangle at 37°",
+        shape,
+        &local,
+        2.4 - 0.24,
+        6,
+        1,
+    );
     // A given normal is used as given (sign included).
     let hint = -(n_true + Vector3::new(0.0, 0.0, 1e-3)).normalize();
     let (pose, _) = fit_plane(&points, Some(hint), CELL).unwrap();
@@ -241,18 +312,29 @@ fn plane_area_and_samples_match_the_polygon() {
     let shape = l_plane();
     let p = plane(&shape);
     assert!((p.area() - 3.12).abs() < 1e-12, "{}", p.area());
-    assert!((p.mesh().area() - 3.12).abs() < 1e-12, "{}", p.mesh().area());
+    assert!(
+        (p.mesh().area() - 3.12).abs() < 1e-12,
+        "{}",
+        p.mesh().area()
+    );
     let spacing = 0.01;
     let samples = shape.sample_surface(spacing);
     let sampled_area = samples.len() as f64 * spacing * spacing;
     assert!((sampled_area / 3.12 - 1.0).abs() < 0.005, "{sampled_area}");
     assert!(samples.iter().all(|s| s.z == 0.0 && p.contains(s.x, s.y)));
-    assert!(samples.iter().all(|s| plane_distance_2d(p, s.x, s.y) == 0.0));
+    assert!(
+        samples
+            .iter()
+            .all(|s| plane_distance_2d(p, s.x, s.y) == 0.0)
+    );
     // Halves: x < 0 holds 2 − 0.16 of the area, x > 0 holds 2 − 0.72; y < 0 holds 2 −
     // 0.16, y > 0 holds 2 − 0.72 as well.
     for (axis, expected_low) in [(0, 1.84 / 3.12), (1, 1.84 / 3.12)] {
         let low = samples.iter().filter(|s| s[axis] < 0.0).count() as f64 / samples.len() as f64;
-        assert!((low / expected_low - 1.0).abs() < 0.01, "axis {axis}: {low} vs {expected_low}");
+        assert!(
+            (low / expected_low - 1.0).abs() < 0.01,
+            "axis {axis}: {low} vs {expected_low}"
+        );
     }
 }
 
@@ -277,23 +359,43 @@ fn star_samples_closest_points_and_mesh_agree_with_brute_force() {
             (a.x * b.y - b.x * a.y) / 2.0
         })
         .sum();
-    assert!((p.area() - shoelace).abs() < 1e-12 && shoelace > 0.0, "counter-clockwise outline");
+    assert!(
+        (p.area() - shoelace).abs() < 1e-12 && shoelace > 0.0,
+        "counter-clockwise outline"
+    );
     assert!((p.mesh().area() - p.area()).abs() < 1e-12);
     let shape = Shape::Plane(p.clone());
     let dense_spacing = 0.005;
     let dense = shape.sample_surface(dense_spacing);
     let sampled_area = dense.len() as f64 * dense_spacing * dense_spacing;
-    assert!((sampled_area / p.area() - 1.0).abs() < 0.01, "{sampled_area} vs {}", p.area());
+    assert!(
+        (sampled_area / p.area() - 1.0).abs() < 0.01,
+        "{sampled_area} vs {}",
+        p.area()
+    );
     let mut rng = ChaCha8Rng::seed_from_u64(12);
     for _ in 0..200 {
-        let q = Point3::new(rng.random_range(-1.5..1.5), rng.random_range(-1.5..1.5), rng.random_range(-0.5..0.5));
+        let q = Point3::new(
+            rng.random_range(-1.5..1.5),
+            rng.random_range(-1.5..1.5),
+            rng.random_range(-0.5..0.5),
+        );
         let c = shape.closest_point(&q);
         let exact = (q - c).norm();
         let in_plane = plane_distance_2d(&p, q.x, q.y);
-        assert!((exact - q.z.hypot(in_plane)).abs() < 1e-12, "{q}: {exact} vs geo {in_plane}");
-        let brute = dense.iter().map(|s| (q - s).norm()).fold(f64::INFINITY, f64::min);
+        assert!(
+            (exact - q.z.hypot(in_plane)).abs() < 1e-12,
+            "{q}: {exact} vs geo {in_plane}"
+        );
+        let brute = dense
+            .iter()
+            .map(|s| (q - s).norm())
+            .fold(f64::INFINITY, f64::min);
         // Grid samples reach into the star's sharp tips only to within a few spacings.
-        assert!(brute >= exact - 1e-12 && brute <= exact + 4.0 * dense_spacing, "{q}: {brute} vs {exact}");
+        assert!(
+            brute >= exact - 1e-12 && brute <= exact + 4.0 * dense_spacing,
+            "{q}: {brute} vs {exact}"
+        );
     }
 }
 
@@ -318,7 +420,9 @@ fn rays_hit_the_material_and_pass_through_holes() {
         Vector3::new(5.0, 0.0, 0.0),
     );
     let prim = Primitive::new(shape.clone(), pose);
-    let h = prim.first_hit(&Point3::new(0.0, 0.5, 0.0), &Vector3::x()).unwrap();
+    let h = prim
+        .first_hit(&Point3::new(0.0, 0.5, 0.0), &Vector3::x())
+        .unwrap();
     assert!((h.depth - 5.0).abs() < 1e-12 && (h.normal + Vector3::x()).norm() < 1e-12);
 }
 
@@ -333,7 +437,10 @@ fn planes_reject_broken_rings() {
     assert!(PlaneShape::new(square[..2].to_vec(), Vec::new()).is_err());
     assert!(PlaneShape::new(vec![p(0.0, 0.0), p(1.0, 0.0), p(2.0, 0.0)], Vec::new()).is_err());
     let nan = vec![p(0.0, 0.0), p(f64::NAN, 0.0), p(1.0, 1.0)];
-    assert!(matches!(PlaneShape::new(nan, Vec::new()), Err(Error::NonFinite { index: 1, .. })));
+    assert!(matches!(
+        PlaneShape::new(nan, Vec::new()),
+        Err(Error::NonFinite { index: 1, .. })
+    ));
     // A closed ring (first vertex repeated) and a clockwise one are accepted, stored open
     // and counter-clockwise.
     let mut closed: Vec<_> = square.iter().rev().copied().collect();
@@ -363,12 +470,21 @@ fn plane_primitives_export_a_mesh_and_keep_their_own_templates() {
     assert!(mesh.vertices.iter().all(|v| prim.distance(v) < 1e-12));
     // Two planes of equal area but different outlines are not one template.
     let p = |x: f64, y: f64| Point2::new(x, y);
-    let wide = PlaneShape::new(vec![p(0.0, 0.0), p(2.0, 0.0), p(2.0, 0.5), p(0.0, 0.5)], vec![]);
-    let square = PlaneShape::new(vec![p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)], vec![]);
+    let wide = PlaneShape::new(
+        vec![p(0.0, 0.0), p(2.0, 0.0), p(2.0, 0.5), p(0.0, 0.5)],
+        vec![],
+    );
+    let square = PlaneShape::new(
+        vec![p(0.0, 0.0), p(1.0, 0.0), p(1.0, 1.0), p(0.0, 1.0)],
+        vec![],
+    );
     let planes = [wide.unwrap(), square.unwrap()]
         .map(|s| Primitive::new(Shape::Plane(s), crate::Pose::identity()));
     let set = crate::lattice::CandidateSet::from_primitives(&planes, 0.05).unwrap();
     assert_eq!(set.templates.len(), 2);
-    let again = crate::lattice::CandidateSet::from_primitives(&[planes[0].clone(), planes[0].clone()], 0.05);
+    let again = crate::lattice::CandidateSet::from_primitives(
+        &[planes[0].clone(), planes[0].clone()],
+        0.05,
+    );
     assert_eq!(again.unwrap().templates.len(), 1);
 }

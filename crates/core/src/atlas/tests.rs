@@ -64,7 +64,14 @@ fn icosphere(radius: f64, levels: u32) -> TriMesh {
 /// An L-shaped plane with a square hole: non-convex, axis-aligned edges, area 3.12.
 pub(super) fn l_plane() -> Shape {
     let p = |x: f64, y: f64| nalgebra::Point2::new(x, y);
-    let outline = vec![p(-1.0, -1.0), p(1.0, -1.0), p(1.0, 0.2), p(0.1, 0.2), p(0.1, 1.0), p(-1.0, 1.0)];
+    let outline = vec![
+        p(-1.0, -1.0),
+        p(1.0, -1.0),
+        p(1.0, 0.2),
+        p(0.1, 0.2),
+        p(0.1, 1.0),
+        p(-1.0, 1.0),
+    ];
     let hole = vec![p(-0.7, -0.7), p(-0.7, -0.3), p(-0.3, -0.3), p(-0.3, -0.7)];
     Shape::Plane(PlaneShape::new(outline, vec![hole]).expect("valid L"))
 }

@@ -104,8 +104,7 @@ impl CandidateSet {
             let same = |t: &Template| match (&t.shape, &p.shape) {
                 (Shape::Plane(a), Shape::Plane(b)) => a == b,
                 _ => {
-                    t.shape.sizes_json() == p.shape.sizes_json()
-                        && t.shape.kind() == p.shape.kind()
+                    t.shape.sizes_json() == p.shape.sizes_json() && t.shape.kind() == p.shape.kind()
                 }
             };
             let t = match templates.iter().position(same) {
