@@ -46,10 +46,10 @@ const SIMPLIFY_RETRIES: u32 = 3;
 const CORNER_LONG_CELLS: f64 = 5.0;
 
 /// How far (cells) a restored corner may be from the rounded-off chain it replaces.
-const CORNER_NEAR_CELLS: f64 = 2.5;
+const CORNER_NEAR_CELLS: f64 = 2.0;
 
 /// Least turn (radians) between the edges around a bevel for it to count as a corner.
-const CORNER_MIN_TURN: f64 = 0.35;
+const CORNER_MIN_TURN: f64 = 0.75;
 
 /// Most vertices of an unsimplified outline that the inset is tried on (its validity
 /// check is quadratic in them).
@@ -93,7 +93,8 @@ pub(super) fn outlines(points: &[Point2<f64>], cell: f64) -> Result<(Vec<Rings>,
         .collect();
     if polygons.is_empty() {
         return Err(Error::invalid(format!(
-            "plane points cover no {MIN_COMPONENT_CELLS} connected cells of {cell}"
+            "plane points leave no outline at cell {cell}: no part covers \
+             {MIN_COMPONENT_CELLS} connected cells and is two cells wide"
         )));
     }
     polygons.sort_by(|a, b| signed_area(&b.0).abs().total_cmp(&signed_area(&a.0).abs()));

@@ -178,6 +178,20 @@ fn outline_of_a_rectangle_turned_37_degrees_in_its_own_coordinates() {
 }
 
 #[test]
+fn outline_of_a_disk_follows_the_rim_with_few_vertices() {
+    let points = scan(0.9, 0.0, 11, |x, y| x.hypot(y) <= 0.8);
+    let shape = PlaneShape::from_points(&points, CELL).unwrap();
+    check_outline("disk", &shape, &points, std::f64::consts::PI * 0.64, 40, 0);
+    // Every vertex near the rim.
+    let worst = shape
+        .outline()
+        .iter()
+        .map(|v| (v.coords.norm() - 0.8).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < CELL / 2.0, "vertex {worst} off the rim");
+}
+
+#[test]
 fn small_components_and_holes_are_cleaned_up() {
     let mut points = scan(1.1, 0.0, 5, |x, y| {
         rectangle(x, y) && (x - 0.5).hypot(y) > 0.012
