@@ -20,14 +20,14 @@
 //!    the sampled surface itself ends (no overhang); skipped where it would make the
 //!    polygon invalid.
 //!
-//! Bounded work: a grid of more than [`MAX_OUTLINE_CELLS`] cells is coarsened (the cell
+//! Bounded work: a grid of more than [`crate::atlas::MAX_OUTLINE_CELLS`] cells is coarsened (the cell
 //! is enlarged until the grid fits); the cost is linear in the points and the cells,
 //! plus the validity checks of the simplified rings (quadratic in their few vertices).
 
 use geo::{Simplify, Validation};
 use nalgebra::{Point2, Vector2};
 
-use super::occupancy::{Grid, MAX_OUTLINE_CELLS, MIN_COMPONENT_CELLS, MIN_HOLE_CELLS};
+use super::occupancy::{Grid, MIN_COMPONENT_CELLS, MIN_HOLE_CELLS};
 use super::plane::{Rings, signed_area, to_geo};
 use crate::{Error, Result};
 
