@@ -29,6 +29,7 @@ use nalgebra::{Point2, Vector2};
 
 use super::occupancy::{Grid, MIN_COMPONENT_CELLS, MIN_HOLE_CELLS};
 use super::plane::{Rings, signed_area, to_geo};
+use crate::error::{Remedy, Unit};
 use crate::{Error, Result};
 
 /// The simplification tolerance, in cells.
@@ -51,9 +52,13 @@ const CORNER_NEAR_CELLS: f64 = 2.0;
 /// Least turn (radians) between the edges around a bevel for it to count as a corner.
 const CORNER_MIN_TURN: f64 = 0.75;
 
-/// Most vertices of an unsimplified outline that the inset is tried on (its validity
-/// check is quadratic in them).
-const MAX_CHECKED_VERTICES: usize = 2048;
+/// Most vertices of a simplified outline (all rings): its validity check is quadratic
+/// in them. A more complex outline is traced again at twice the cell.
+pub(super) const MAX_CHECKED_VERTICES: usize = 2048;
+
+/// Doublings of the cell tried when an outline has more than [`MAX_CHECKED_VERTICES`]
+/// vertices.
+const COARSEN_RETRIES: u32 = 3;
 
 /// The longest miter of the inward offset, in offset distances (sharper corners are
 /// bevelled to this length).
@@ -61,11 +66,15 @@ const MAX_MITER: f64 = 3.0;
 
 /// The outlines of `points` at occupancy cell `cell` (see the module docs), one polygon
 /// per connected component of the cleaned grid, largest area first, each a valid
-/// polygon; and the cell actually used (larger than `cell` when the grid was coarsened).
+/// polygon; and the cell actually used: larger than `cell` when the grid was coarsened
+/// to fit [`crate::atlas::MAX_OUTLINE_CELLS`], or doubled (up to [`COARSEN_RETRIES`]
+/// times) when a simplified outline still had more than [`MAX_CHECKED_VERTICES`]
+/// vertices (points much sparser than the cell leave a speckled outline).
 ///
 /// Errors: no points ([`Error::EmptyCloud`]), a non-finite point ([`Error::NonFinite`]),
-/// `cell` not positive and finite ([`Error::OutOfRange`]), or no component large enough
-/// ([`Error::InvalidArgument`]).
+/// `cell` not positive and finite ([`Error::OutOfRange`]), no component large enough
+/// ([`Error::InvalidArgument`]), or an outline too complex even at the coarsest cell
+/// ([`Error::OverLimit`]).
 pub(super) fn outlines(points: &[Point2<f64>], cell: f64) -> Result<(Vec<Rings>, f64)> {
     crate::check::positive("plane outline cell", cell)?;
     if points.is_empty() {
@@ -80,17 +89,43 @@ pub(super) fn outlines(points: &[Point2<f64>], cell: f64) -> Result<(Vec<Rings>,
             index,
         });
     }
+    let mut try_cell = cell;
+    let mut need = 0;
+    for _ in 0..=COARSEN_RETRIES {
+        match trace(points, try_cell)? {
+            Ok(done) => return Ok(done),
+            Err(vertices) => need = vertices,
+        }
+        try_cell *= 2.0;
+    }
+    Err(Error::OverLimit {
+        what: format!(
+            "the outline of {} plane points at cell {cell}",
+            points.len()
+        ),
+        need: need as f64,
+        limit: MAX_CHECKED_VERTICES as f64,
+        unit: Unit::Count("outline vertices"),
+        remedies: vec![Remedy::Raise("cell")],
+    })
+}
+
+/// One attempt of [`outlines`] at `cell`: `Ok(Err(n))` when a simplified outline has
+/// `n` > [`MAX_CHECKED_VERTICES`] vertices.
+fn trace(points: &[Point2<f64>], cell: f64) -> Result<Result<(Vec<Rings>, f64), usize>> {
     let mut grid = Grid::new(points, cell);
     grid.close();
     grid.drop_small_components();
     grid.fill_small_holes();
     let step = grid.step.x.min(grid.step.y);
     let inset = grid.inset(points.len());
-    let mut polygons: Vec<Rings> = grid
-        .rings()
-        .into_iter()
-        .map(|rings| finish(rings, step, inset))
-        .collect();
+    let mut polygons = Vec::new();
+    for rings in grid.rings() {
+        match finish(rings, step, inset) {
+            Ok(p) => polygons.push(p),
+            Err(n) => return Ok(Err(n)),
+        }
+    }
     if polygons.is_empty() {
         return Err(Error::invalid(format!(
             "plane points leave no outline at cell {cell}: no part covers \
@@ -98,32 +133,49 @@ pub(super) fn outlines(points: &[Point2<f64>], cell: f64) -> Result<(Vec<Rings>,
         )));
     }
     polygons.sort_by(|a, b| signed_area(&b.0).abs().total_cmp(&signed_area(&a.0).abs()));
-    Ok((polygons, step))
+    Ok(Ok((polygons, step)))
 }
 
-/// Simplified, inset, valid rings of one component.
-/// Simplification falls back to smaller tolerances and finally to the traced rings
+/// The number of vertices over all rings.
+fn vertex_count((outline, holes): &Rings) -> usize {
+    outline.len() + holes.iter().map(Vec::len).sum::<usize>()
+}
+
+/// Simplified, inset, valid rings of one component, or `Err(n)` when the simplified
+/// rings have `n` > [`MAX_CHECKED_VERTICES`] vertices (too many to check). The
+/// simplification falls back to smaller tolerances and finally to the traced rings
 /// (valid by construction); the inset is skipped where it would make the polygon
 /// invalid.
-fn finish(rings: Rings, step: f64, inset: f64) -> Rings {
-    let simplified = (0..=SIMPLIFY_RETRIES)
-        .map(|k| SIMPLIFY_CELLS * step / 2f64.powi(k as i32))
-        .find_map(|eps| simplify(&rings, eps, step).filter(is_valid));
+fn finish(rings: Rings, step: f64, inset: f64) -> Result<Rings, usize> {
+    let mut simplified = None;
+    for k in 0..=SIMPLIFY_RETRIES {
+        let eps = SIMPLIFY_CELLS * step / 2f64.powi(k as i32);
+        let Some(candidate) = simplify(&rings, eps, step) else {
+            continue;
+        };
+        let n = vertex_count(&candidate);
+        if n > MAX_CHECKED_VERTICES {
+            return Err(n);
+        }
+        if is_valid(&candidate) {
+            simplified = Some(candidate);
+            break;
+        }
+    }
     let (base, checkable) = match simplified {
         Some(s) => (s, true),
         None => {
-            let small =
-                rings.0.len() + rings.1.iter().map(Vec::len).sum::<usize>() <= MAX_CHECKED_VERTICES;
+            let small = vertex_count(&rings) <= MAX_CHECKED_VERTICES;
             (rings, small)
         }
     };
     if inset > 0.0 && checkable {
         let shrunk = offset_rings(&base, inset);
         if is_valid(&shrunk) && signed_area(&shrunk.0).abs() > 0.0 {
-            return shrunk;
+            return Ok(shrunk);
         }
     }
-    base
+    Ok(base)
 }
 
 /// The rings simplified with tolerance `eps`, holes smaller than [`MIN_HOLE_CELLS`]

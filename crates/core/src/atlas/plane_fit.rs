@@ -28,12 +28,14 @@ impl PlaneShape {
     /// simplified to within about half a cell and ending half a point spacing beyond the
     /// outermost points. A grid of more than [`crate::atlas::MAX_OUTLINE_CELLS`] cells is
     /// coarsened until it fits (the outline is then correspondingly coarser, and points
-    /// sparse at the coarser cell may leave no part). Linear in points and cells.
+    /// sparse at the coarser cell may leave no part); an outline that simplifies to more
+    /// than 2048 vertices (points much sparser than the cell) is traced again at twice
+    /// the cell, up to three times. Linear in points and cells.
     ///
     /// Errors: no points ([`Error::EmptyCloud`]), a non-finite point
     /// ([`Error::NonFinite`]), `cell` not positive and finite ([`Error::OutOfRange`]),
     /// no part of at least the minimum size ([`Error::InvalidArgument`]), or an outline
-    /// with more than [`crate::atlas::MAX_PLANE_VERTICES`] vertices ([`Error::OverLimit`]).
+    /// still too complex at the coarsest cell tried ([`Error::OverLimit`]).
     pub fn parts_from_points(points: &[Point2<f64>], cell: f64) -> Result<Vec<PlaneShape>> {
         let (polygons, _cell) = super::outline::outlines(points, cell)?;
         polygons

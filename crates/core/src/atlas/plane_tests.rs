@@ -215,6 +215,25 @@ fn small_components_and_holes_are_cleaned_up() {
 }
 
 #[test]
+fn a_cell_finer_than_the_points_is_coarsened_until_the_outline_is_simple() {
+    // Uniform random points, mean spacing 0.01, traced at a cell of 0.006: the occupancy
+    // is speckled with holes until the cell is doubled.
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let points: Vec<Point2<f64>> = (0..40_000)
+        .map(|_| Point2::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
+        .collect();
+    let shape = PlaneShape::from_points(&points, 0.006).unwrap();
+    eprintln!(
+        "speckled: area {:.4}, {} vertices, {} holes",
+        shape.area(),
+        shape.vertex_count(),
+        shape.holes().len()
+    );
+    assert!(shape.vertex_count() <= super::outline::MAX_CHECKED_VERTICES);
+    assert!((shape.area() / 4.0 - 1.0).abs() < 0.05, "{}", shape.area());
+}
+
+#[test]
 fn outline_inputs_are_checked() {
     let ok = [Point2::new(0.0, 0.0)];
     assert!(matches!(
