@@ -8,6 +8,7 @@ use primfit_core::Error;
 /// that no flag sets is printed as it is.
 const FLAGS: &[(&str, &str)] = &[
     // fit
+    ("kinds", "--types"),
     ("size", "--size"),
     ("radius", "--radius"),
     ("bend", "--bend"),

@@ -9,6 +9,7 @@
 mod common;
 
 use common::{fit_trials, header, pipe_options, row, trials, truth_outcomes, truth_row};
+use primfit_core::Limit;
 use primfit_core::chamfer::PointModel;
 
 fn main() {
@@ -18,7 +19,7 @@ fn main() {
     for alpha in [1usize, 2, 5, 10, 20] {
         let mut options = pipe_options(0.5);
         options.model = PointModel::Independent;
-        options.alpha = Some(alpha);
+        options.alpha = Limit::At(alpha);
         let (plain, refined) = fit_trials(n, &options);
         println!("{}", row(&alpha.to_string(), &plain, &refined));
     }

@@ -174,9 +174,7 @@ fn run_child(scene: BenchScene, threads: usize) -> Value {
                 let metrics = t.elapsed().as_secs_f64();
                 fill(&mut v, &r, &timer, total, metrics, m.point_to_model_mean);
             }
-            Err(e @ (Error::TooLarge(_) | Error::OverLimit { .. })) => {
-                v["refused"] = json!(e.to_string())
-            }
+            Err(e @ Error::OverLimit { .. }) => v["refused"] = json!(e.to_string()),
             Err(e) => v["error"] = json!(e.to_string()),
         }
         v["peak_rss"] = json!(peak_rss());

@@ -3,6 +3,7 @@
 //! β = 32 documented in `primfit_core::fit`.
 //!
 //!     cargo run --release --example beta_study
+use primfit_core::Limit;
 use primfit_core::ShapeKind;
 use primfit_core::fit::{FitOptions, binary_chamfer, fit};
 use primfit_core::progress::Silent;
@@ -51,13 +52,13 @@ fn main() {
             radius: Some(0.1),
             bend: Some(0.5),
             spacing: Some(0.5),
-            beta: Some(beta),
-            ..Default::default()
+            beta: Limit::At(beta),
+            ..FitOptions::lattice()
         };
         let hall_options = FitOptions {
             size: Some(1.0),
-            beta: Some(beta),
-            ..Default::default()
+            beta: Limit::At(beta),
+            ..FitOptions::lattice()
         };
         let mut row = format!("| {beta} |");
         for s in &pipes {

@@ -45,7 +45,7 @@ fn main() {
                         parameterization,
                         ..Default::default()
                     },
-                    ..Default::default()
+                    ..FitOptions::lattice()
                 };
                 if tubes {
                     o.kinds = vec![ShapeKind::Cylinder, ShapeKind::Elbow];

@@ -66,11 +66,11 @@ const POLISH_ITERATIONS: usize = 20;
 /// aligned scan keeps its exact axes.
 pub const SNAP_ANGLE: f64 = 0.5 * std::f64::consts::PI / 180.0;
 
-/// How the lattice frame is chosen (`--frame auto|axis|FILE`).
-#[derive(Debug, Clone, PartialEq, Default)]
+/// How the lattice frame is chosen (`--frame auto|axis|FILE`; the fit's default is
+/// [`crate::fit::DEFAULT_FRAME`]).
+#[derive(Debug, Clone, PartialEq)]
 pub enum FrameChoice {
     /// The scene axes, origin as given (or 0): the behaviour of a plain lattice.
-    #[default]
     Axis,
     /// Estimated from the cloud ([`estimate_frame`], [`grid_origin`]).
     Auto,

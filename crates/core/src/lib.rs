@@ -27,6 +27,7 @@
 //! | [`metrics`] | the measures of DESIGN §4 |
 //! | [`io`] | PLY and JSON |
 //! | [`error`], [`check`] | the typed error and the range checks that build it |
+//! | [`limit`] | a count that may be unlimited (`inf`) |
 //!
 //! Units: every length is in the cloud's units (metres for the bundled data); distances
 //! inside losses are **squared** Euclidean, as in the thesis.
@@ -35,11 +36,14 @@
 //!
 //! [`fit::fit`] runs the whole pipeline on a [`PointCloud`]: here a small synthetic
 //! hallway (floor and two walls tiled by 1 m squares, 1 cm jitter), fitted with 1 m
-//! squares on a 0.5 m lattice and then refined, as `primfit fit` does by default.
+//! squares on a 0.5 m lattice and then refined. `FitOptions::default()` is what
+//! `primfit fit` does without flags (an estimated frame, refinement); here the lattice is
+//! kept on the scene axes, on which the synthetic hallway lies.
 //!
 //! ```
 //! use primfit_core::ShapeKind;
 //! use primfit_core::fit::{FitOptions, fit};
+//! use primfit_core::frame::FrameChoice;
 //! use primfit_core::metrics::{MetricsOptions, evaluate};
 //! use primfit_core::progress::Silent;
 //! use primfit_core::refine::RefineOptions;
@@ -54,6 +58,7 @@
 //!     kinds: vec![ShapeKind::Square],
 //!     size: Some(1.0),
 //!     spacing: Some(0.5),
+//!     frame: FrameChoice::Axis,
 //!     refine: Some(RefineOptions::default()),
 //!     ..Default::default()
 //! };
@@ -111,6 +116,7 @@ pub mod fit;
 pub mod frame;
 pub mod io;
 pub mod lattice;
+pub mod limit;
 pub mod metrics;
 pub mod primitive;
 pub mod progress;
@@ -125,6 +131,7 @@ pub mod synth;
 pub use atlas::{Shape, ShapeKind, TriMesh};
 pub use cloud::PointCloud;
 pub use error::{Error, Result};
+pub use limit::Limit;
 pub use primitive::{Hit, Pose, Primitive};
 
 /// The library version, written into every `result.json` as `"primfit"`.

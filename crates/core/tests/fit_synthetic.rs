@@ -15,9 +15,10 @@ use primfit_core::{Shape, ShapeKind};
 fn options_for(scene: &Scene) -> FitOptions {
     let h = &scene.lattice;
     let mut o = FitOptions {
+        kinds: Vec::new(),
         spacing: Some(h.spacing),
         origin: Some(h.origin),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     for s in &h.shapes {
         o.kinds.push(s.kind());

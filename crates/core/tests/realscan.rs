@@ -99,7 +99,7 @@ fn auto(kinds: Vec<ShapeKind>, size: f64) -> FitOptions {
         size: Some(size),
         frame: FrameChoice::Auto,
         refine: Some(RefineOptions::default()),
-        ..Default::default()
+        ..FitOptions::lattice()
     }
 }
 
@@ -192,7 +192,7 @@ fn the_real_plane_scan_is_covered_tightly() {
     let defaults = FitOptions {
         frame: FrameChoice::Auto,
         refine: Some(RefineOptions::default()),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     let r = fit(&cloud, &defaults, &Silent).unwrap();
     let h = r.settings.point_spacing;

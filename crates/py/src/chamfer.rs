@@ -3,6 +3,7 @@
 
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use primfit_core::Limit;
 use primfit_core::chamfer::{ChamferOptions, Coefficients, Evaluator, PointModel, SampleSets};
 use primfit_core::na::Point3;
 use primfit_core::progress::Silent;
@@ -23,8 +24,8 @@ pub struct ChamferProblem {
 }
 
 /// `None` and "unlimited" both mean every entry is kept (the exact loss).
-fn exact_if_unlimited(v: Option<usize>) -> Option<usize> {
-    v.filter(|&k| k != usize::MAX)
+fn exact_if_unlimited(v: Option<Limit>) -> Option<usize> {
+    v.and_then(Limit::get)
 }
 
 impl From<Coefficients> for ChamferProblem {

@@ -10,7 +10,7 @@ use std::borrow::Cow;
 use numpy::ndarray::{ArrayView1, ArrayView2, Axis};
 use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use primfit_core::na::Point3;
-use primfit_core::{Error, TriMesh};
+use primfit_core::{Error, Limit, TriMesh};
 use pyo3::exceptions::{PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyString;
@@ -33,9 +33,10 @@ pub fn to_py(e: Error) -> PyErr {
         | Error::Missing { .. }
         | Error::Json { .. }
         | Error::Format { .. }
+        | Error::UnknownFormat { .. }
         | Error::InvalidArgument(_) => PyValueError::new_err(message),
         // Refused before allocating: the caller can shrink the problem.
-        Error::OverLimit { .. } | Error::TooLarge(_) => PyValueError::new_err(message),
+        Error::OverLimit { .. } => PyValueError::new_err(message),
         // `root` never returns an item wrapper.
         Error::Item { .. } => PyValueError::new_err(message),
     }
@@ -154,16 +155,16 @@ pub fn indices(name: &str, a: &PyReadonlyArray1<'_, i64>) -> PyResult<Vec<usize>
         .collect()
 }
 
-/// A count limit: `None` → `None`; a positive int; or `"inf"` / `math.inf` → unlimited
-/// (`Some(usize::MAX)`).
-pub fn limit(name: &str, v: Option<&Bound<'_, PyAny>>) -> PyResult<Option<usize>> {
+/// A count limit: `None` → `None` (the library's default); a positive int; or `"inf"` /
+/// `math.inf` → [`Limit::All`].
+pub fn limit(name: &str, v: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Limit>> {
     let Some(v) = v else { return Ok(None) };
     if v.is_none() {
         return Ok(None);
     }
     if let Ok(s) = v.cast::<PyString>() {
         return match s.to_str()? {
-            "inf" | "all" => Ok(Some(usize::MAX)),
+            "inf" | "all" => Ok(Some(Limit::All)),
             other => Err(value_error(format!(
                 "{name} must be a positive integer or 'inf', got {other:?}"
             ))),
@@ -171,18 +172,38 @@ pub fn limit(name: &str, v: Option<&Bound<'_, PyAny>>) -> PyResult<Option<usize>
     }
     if let Ok(k) = v.extract::<i64>() {
         return match usize::try_from(k) {
-            Ok(k) if k >= 1 => Ok(Some(k)),
+            Ok(k) if k >= 1 => Ok(Some(Limit::At(k))),
             _ => Err(value_error(format!(
                 "{name} must be at least 1 (or 'inf'), got {k}"
             ))),
         };
     }
     match v.extract::<f64>() {
-        Ok(f) if f == f64::INFINITY => Ok(Some(usize::MAX)),
+        Ok(f) if f == f64::INFINITY => Ok(Some(Limit::All)),
         _ => Err(value_error(format!(
             "{name} must be a positive integer or 'inf', got {v}"
         ))),
     }
+}
+
+/// `N` finite numbers from any iterable (a list, a tuple, a numpy array); `None` stays
+/// `None`.
+pub fn floats<const N: usize>(
+    name: &str,
+    v: Option<&Bound<'_, PyAny>>,
+) -> PyResult<Option<[f64; N]>> {
+    let Some(v) = v.filter(|v| !v.is_none()) else {
+        return Ok(None);
+    };
+    let values: Vec<f64> = v
+        .try_iter()
+        .and_then(|items| items.map(|x| x?.extract::<f64>()).collect())
+        .map_err(|_| value_error(format!("{name} must be {N} numbers, got {v}")))?;
+    let array: [f64; N] = values
+        .try_into()
+        .map_err(|_| value_error(format!("{name} must be {N} numbers, got {v}")))?;
+    check_finite(name, &array)?;
+    Ok(Some(array))
 }
 
 /// A triangle mesh from `(V, 3)` vertices and `(F, 3)` integer faces.

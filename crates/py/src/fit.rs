@@ -1,95 +1,234 @@
 //! `fit`: the whole pipeline of the CLI's `primfit fit`, on an array; and `candidates`:
 //! the candidate set such a fit would optimise over, as explicit samples.
 
-use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray2};
+use std::path::PathBuf;
+
+use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::chamfer::{CandidateGeometry, Coefficients, PointModel};
-use primfit_core::fit::{self as core_fit, FitOptions, Settings};
+use primfit_core::fit::{self as core_fit, FitOptions, McmcFitOptions, MethodOptions, Settings};
+use primfit_core::frame::FrameChoice;
 use primfit_core::lattice::CandidateSet;
 use primfit_core::metrics::{self, MetricsOptions};
 use primfit_core::na::Point3;
 use primfit_core::progress::Silent;
+use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
 use primfit_core::spatial::PointIndex;
-use primfit_core::{PointCloud, Result};
-use pyo3::exceptions::PyRuntimeError;
+use primfit_core::{Limit, PointCloud, Result, io};
+use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
+use pyo3::types::PyString;
 
 use crate::chamfer::ChamferProblem;
 use crate::convert::{self, ToPyResult};
+use crate::io::cloud_arrays;
 use crate::pool;
 use crate::synth::points_array;
 
-/// Options of a fit, as the flags of `primfit fit` (None = derived from the cloud).
+/// Options of a fit: every flag of `primfit fit`, under the same names (`None` = the
+/// library's default, [`FitOptions::default`], or a value derived from the cloud).
 #[pyclass(module = "primfit._primfit", name = "FitOptions", frozen)]
 pub struct PyFitOptions(FitOptions);
+
+/// The options of `--method mcmc`, as given (`None` = the library's default).
+struct McmcArgs {
+    steps: Option<usize>,
+    burn_in: Option<usize>,
+    noise_rate: Option<f64>,
+    sigma: Option<f64>,
+    prior: Option<f64>,
+}
 
 #[pymethods]
 impl PyFitOptions {
     #[new]
     #[pyo3(signature = (
-        *, types=None, size=None, radius=None, bend=None, spacing=None, origin=None,
-        sample_spacing=None, model="existence", alpha=None, beta=None, cap=None, weights=None,
-        parameterization="box", max_iterations=200, polish=true, mesh_model=None, seed=0,
-        memory_budget=None
+        *, types=None, size=None, radius=None, bend=None, spacing=None, origin=None, frame=None,
+        refine=None, refine_rounds=None, sample_spacing=None, model=None, alpha=None, beta=None,
+        cap=None, weights=None, method=None, steps=None, burn_in=None, noise_rate=None,
+        sigma=None, prior=None, parameterization=None, max_iterations=None, search_points=None,
+        polish=None, seed=None, mesh_model=None, memory_budget=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
-        types: Option<Vec<String>>,
+        py: Python<'_>,
+        types: Option<&Bound<'_, PyAny>>,
         size: Option<f64>,
         radius: Option<f64>,
         bend: Option<f64>,
         spacing: Option<f64>,
-        origin: Option<[f64; 3]>,
+        origin: Option<&Bound<'_, PyAny>>,
+        frame: Option<&Bound<'_, PyAny>>,
+        refine: Option<bool>,
+        refine_rounds: Option<usize>,
         sample_spacing: Option<f64>,
-        model: &str,
+        model: Option<&str>,
         alpha: Option<&Bound<'_, PyAny>>,
         beta: Option<&Bound<'_, PyAny>>,
         cap: Option<f64>,
-        weights: Option<(f64, f64)>,
-        parameterization: &str,
-        max_iterations: usize,
-        polish: bool,
-        mesh_model: Option<(PyReadonlyArray2<'_, f64>, PyReadonlyArray2<'_, i64>)>,
-        seed: u64,
+        weights: Option<&Bound<'_, PyAny>>,
+        method: Option<&str>,
+        steps: Option<usize>,
+        burn_in: Option<usize>,
+        noise_rate: Option<f64>,
+        sigma: Option<f64>,
+        prior: Option<f64>,
+        parameterization: Option<&str>,
+        max_iterations: Option<usize>,
+        search_points: Option<&Bound<'_, PyAny>>,
+        polish: Option<bool>,
+        seed: Option<u64>,
+        mesh_model: Option<&Bound<'_, PyAny>>,
         memory_budget: Option<u64>,
     ) -> PyResult<Self> {
-        let types = types.unwrap_or_else(|| vec!["square".into()]);
-        let kinds = types
-            .iter()
-            .map(|t| ShapeKind::parse(t))
-            .collect::<Result<Vec<_>>>()
-            .py()?;
-        let mesh = match mesh_model {
-            Some((v, f)) => Some(MeshShape::new("python", convert::mesh(&v, &f)?).py()?),
-            None => None,
+        let d = FitOptions::default();
+        let weights = convert::floats::<2>("weights", weights)?;
+        let mcmc = McmcArgs {
+            steps,
+            burn_in,
+            noise_rate,
+            sigma,
+            prior,
         };
         Ok(PyFitOptions(FitOptions {
-            kinds,
+            kinds: kinds(types)?.unwrap_or(d.kinds),
             size,
             radius,
             bend,
             spacing,
-            origin: origin.map(|[x, y, z]| Point3::new(x, y, z)),
+            origin: convert::floats::<3>("origin", origin)?.map(Point3::from),
+            frame: frame_choice(py, frame)?.unwrap_or(d.frame),
+            refine: refinement(refine, refine_rounds, d.refine),
             sample_spacing,
-            model: PointModel::parse(model).py()?,
-            alpha: convert::limit("alpha", alpha)?,
-            beta: convert::limit("beta", beta)?,
+            model: model
+                .map(PointModel::parse)
+                .transpose()
+                .py()?
+                .unwrap_or(d.model),
+            alpha: convert::limit("alpha", alpha)?.unwrap_or(d.alpha),
+            beta: convert::limit("beta", beta)?.unwrap_or(d.beta),
             cap,
-            primitive_weight: weights.map(|w| w.0),
-            point_weight: weights.map(|w| w.1),
-            mesh,
+            primitive_weight: weights.map_or(d.primitive_weight, |w| w[0]),
+            point_weight: weights.map_or(d.point_weight, |w| w[1]),
+            mesh: mesh_shape(mesh_model)?,
             solver: SolverOptions {
-                parameterization: Parameterization::parse(parameterization).py()?,
-                max_iterations,
-                polish,
-                ..Default::default()
+                parameterization: parameterization
+                    .map(Parameterization::parse)
+                    .transpose()
+                    .py()?
+                    .unwrap_or(d.solver.parameterization),
+                max_iterations: max_iterations.unwrap_or(d.solver.max_iterations),
+                search_points: search_point_limit(search_points)?.unwrap_or(d.solver.search_points),
+                polish: polish.unwrap_or(d.solver.polish),
+                ..d.solver
             },
+            method: method_options(method, mcmc)?.unwrap_or(d.method),
             memory_budget,
-            seed,
-            ..Default::default()
+            seed: seed.unwrap_or(d.seed),
         }))
     }
+}
+
+/// `types` as a list of names or one comma-separated string.
+fn kinds(types: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<ShapeKind>>> {
+    let Some(types) = types.filter(|t| !t.is_none()) else {
+        return Ok(None);
+    };
+    let names: Vec<String> = match types.cast::<PyString>() {
+        Ok(s) => s.to_str()?.split(',').map(str::to_owned).collect(),
+        Err(_) => types
+            .try_iter()?
+            .map(|t| t?.extract::<String>())
+            .collect::<PyResult<_>>()?,
+    };
+    let kinds = names
+        .iter()
+        .map(|t| t.trim())
+        .filter(|t| !t.is_empty())
+        .map(ShapeKind::parse)
+        .collect::<Result<Vec<_>>>()
+        .py()?;
+    Ok(Some(kinds))
+}
+
+/// `frame`: `"auto"`, `"axis"`, a dict `{"rotation": [w, x, y, z], "origin": [x, y, z]}`
+/// (or a `result.json` document), or the path of such a JSON file, as `--frame`.
+fn frame_choice(py: Python<'_>, frame: Option<&Bound<'_, PyAny>>) -> PyResult<Option<FrameChoice>> {
+    let Some(frame) = frame.filter(|f| !f.is_none()) else {
+        return Ok(None);
+    };
+    let text = if let Ok(s) = frame.cast::<PyString>() {
+        match s.to_str()? {
+            name @ ("auto" | "axis") => return FrameChoice::parse(name).py().map(Some),
+            path => std::fs::read_to_string(path)
+                .map_err(|e| PyOSError::new_err(format!("frame {path:?}: {e}")))?,
+        }
+    } else {
+        let json = py.import("json")?;
+        json.call_method1("dumps", (frame,))?.extract::<String>()?
+    };
+    let value: serde_json::Value = serde_json::from_str(&text)
+        .map_err(|e| PyValueError::new_err(format!("frame is not valid JSON: {e}")))?;
+    FrameChoice::from_json(&value).py().map(Some)
+}
+
+/// Refinement on (the default) or off (`refine=False`), with `refine_rounds` rounds.
+fn refinement(
+    on: Option<bool>,
+    rounds: Option<usize>,
+    default: Option<RefineOptions>,
+) -> Option<RefineOptions> {
+    if on == Some(false) {
+        return None;
+    }
+    let base = default.unwrap_or_default();
+    Some(RefineOptions {
+        rounds: rounds.unwrap_or(base.rounds),
+        ..base
+    })
+}
+
+/// `search_points`: a count, `0` or `"inf"` for one phase on every point.
+fn search_point_limit(v: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Limit>> {
+    match v {
+        Some(v) if v.extract::<i64>().ok() == Some(0) => Ok(Some(Limit::All)),
+        other => convert::limit("search_points", other),
+    }
+}
+
+/// The method called `name` with its options (ignored by `chamfer`, as by the CLI).
+fn method_options(name: Option<&str>, a: McmcArgs) -> PyResult<Option<MethodOptions>> {
+    let Some(name) = name else { return Ok(None) };
+    Ok(Some(match MethodOptions::parse(name).py()? {
+        MethodOptions::Mcmc(d) => MethodOptions::Mcmc(McmcFitOptions {
+            rate: a.noise_rate,
+            sigma: a.sigma,
+            prior: a.prior.unwrap_or(d.prior),
+            steps: a.steps,
+            burn_in: a.burn_in,
+            ..d
+        }),
+        chamfer => chamfer,
+    }))
+}
+
+/// `mesh_model`: the path of a PLY mesh (as `--mesh-model`), or `(vertices (V, 3)
+/// float64, faces (F, 3) int64)`.
+fn mesh_shape(mesh_model: Option<&Bound<'_, PyAny>>) -> PyResult<Option<MeshShape>> {
+    let Some(m) = mesh_model.filter(|m| !m.is_none()) else {
+        return Ok(None);
+    };
+    if let Ok(path) = m.extract::<PathBuf>() {
+        let mesh = io::read_mesh(&path).py()?;
+        return MeshShape::new(path.display().to_string(), mesh)
+            .py()
+            .map(Some);
+    }
+    let (v, f): (PyReadonlyArray2<'_, f64>, PyReadonlyArray2<'_, i64>) = m.extract()?;
+    MeshShape::new("python", convert::mesh(&v, &f)?)
+        .py()
+        .map(Some)
 }
 
 /// `(settings_json, samples (K, 3), owner (K,), primitives_json)`.
@@ -105,16 +244,21 @@ fn json_text(v: &serde_json::Value) -> PyResult<String> {
         .map_err(|e| PyRuntimeError::new_err(format!("cannot write JSON: {e}")))
 }
 
-/// Fits primitives to `cloud (J, 3)`. Returns `(result_json, existence)`: the
-/// `result.json` document (settings, metrics, primitives) and the existence probability
-/// of each chosen primitive.
+/// Fits primitives to `cloud (J, 3)` (with the per-point `normals`, `labels` and sensor
+/// origins `sensors` the `mcmc` method uses), as `primfit fit`. Returns `(result_json,
+/// existence)`: the `result.json` document (settings, metrics, primitives) and the
+/// existence probability of each chosen primitive.
 #[pyfunction]
+#[pyo3(signature = (cloud, options, *, normals=None, labels=None, sensors=None))]
 pub fn fit<'py>(
     py: Python<'py>,
     cloud: PyReadonlyArray2<'py, f64>,
     options: &PyFitOptions,
+    normals: Option<PyReadonlyArray2<'py, f64>>,
+    labels: Option<PyReadonlyArray1<'py, i32>>,
+    sensors: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<(String, Bound<'py, PyArray1<f64>>)> {
-    let cloud = PointCloud::from_points(convert::points("cloud", &cloud, false)?);
+    let cloud = cloud_arrays(cloud, normals, None, labels, sensors, false)?;
     let (doc, existence) = pool::detached(py, || -> Result<_> {
         let result = core_fit::fit(&cloud, &options.0, &Silent)?;
         let m = metrics::evaluate(

@@ -1,4 +1,6 @@
-//! PLY files: clouds in and out, meshes in, fitted primitives out as one mesh.
+//! Files: clouds in (every format `primfit_core::io::read_cloud` reads: PLY, PCD,
+//! LAS/LAZ, E57, XYZ/PTS/CSV text) and out (PLY), meshes in, fitted primitives out as
+//! one mesh.
 
 use std::path::PathBuf;
 
@@ -39,8 +41,10 @@ fn triples<T: Copy>(name: &str, a: ArrayView2<'_, T>, rows: usize) -> PyResult<V
     Ok(a.axis_iter(Axis(0)).map(|r| [r[0], r[1], r[2]]).collect())
 }
 
-/// Reads a PLY point cloud: a dict with `points` (J, 3) and, when the file has them,
-/// `normals` (J, 3), `colors` (J, 3) uint8, `labels` (J,) int32, `sensors` (J, 3).
+/// Reads a point cloud of any format `primfit_core::io::read_cloud` reads (by extension:
+/// PLY, PCD, LAS/LAZ, E57, XYZ/PTS/CSV text): a dict with `points` (J, 3) and, when the
+/// file has them, `normals` (J, 3), `colors` (J, 3) uint8, `labels` (J,) int32,
+/// `sensors` (J, 3).
 #[pyfunction]
 pub fn read_ply<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
     let cloud = pool::detached(py, || io::read_cloud(&path))?.py()?;
@@ -88,7 +92,25 @@ pub fn write_ply(
     sensors: Option<PyReadonlyArray2<'_, f64>>,
     ascii: bool,
 ) -> PyResult<()> {
-    let points = convert::points("points", &points, true)?;
+    let cloud = cloud_arrays(points, normals, colors, labels, sensors, true)?;
+    pool::detached(py, || io::write_cloud(&path, &cloud, encoding(ascii)))?.py()
+}
+
+/// A cloud from its arrays (checked: shapes, one entry per point, finite coordinates);
+/// empty only with `allow_empty`.
+pub fn cloud_arrays(
+    points: PyReadonlyArray2<'_, f64>,
+    normals: Option<PyReadonlyArray2<'_, f64>>,
+    colors: Option<PyReadonlyArray2<'_, u8>>,
+    labels: Option<PyReadonlyArray1<'_, i32>>,
+    sensors: Option<PyReadonlyArray2<'_, f64>>,
+    allow_empty: bool,
+) -> PyResult<PointCloud> {
+    let points = convert::points(
+        if allow_empty { "points" } else { "cloud" },
+        &points,
+        allow_empty,
+    )?;
     let j = points.len();
     let normals = match normals {
         Some(n) => Some(
@@ -114,6 +136,12 @@ pub fn write_ply(
         None => None,
     };
     let sensors = match sensors {
+        Some(s) if s.shape()[0] != j => {
+            return Err(PyValueError::new_err(format!(
+                "sensors must have shape ({j}, 3), got {:?}",
+                s.shape()
+            )));
+        }
         Some(s) => Some(convert::points("sensors", &s, true)?),
         None => None,
     };
@@ -124,7 +152,7 @@ pub fn write_ply(
         labels,
         sensors,
     };
-    pool::detached(py, || io::write_cloud(&path, &cloud, encoding(ascii)))?.py()
+    Ok(cloud)
 }
 
 /// Reads a PLY triangle mesh: `(vertices (V, 3), faces (F, 3) int64)`.

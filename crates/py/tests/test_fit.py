@@ -17,6 +17,10 @@ import primfit
 
 REPO = Path(__file__).resolve().parents[3]
 
+# The plain lattice pipeline (`primfit fit --frame axis --no-refine`): primitives exactly on
+# the lattice, which these tests compare with other solutions of the same loss.
+LATTICE = {"frame": "axis", "refine": False}
+
 
 def corner() -> np.ndarray:
     """A 2 m × 2 m floor patch at z = 0 and a wall at x = 0, on a 0.5 m lattice."""
@@ -40,7 +44,7 @@ def key(primitive: dict) -> tuple:
 
 def test_fit_result_round_trip():
     cloud = corner()
-    result = primfit.fit(cloud, size=1.0)
+    result = primfit.fit(cloud, size=1.0, **LATTICE)
     assert len(result) == len(result.primitives) >= 8
     assert result.existence.shape == (len(result.primitives),)
     assert result.existence.dtype == np.float64
@@ -64,21 +68,22 @@ def test_fit_options_reach_the_core():
     result = primfit.fit(
         cloud, types="square", size=1.0, spacing=0.5, model="independent", alpha=5, beta=3,
         cap=0.4, weights=(1.0, 2.0), parameterization="logit", max_iterations=50, seed=7,
-        origin=(0, 0, 0),
+        origin=(0, 0, 0), **LATTICE,
     )
     s = result.settings
     assert (s["model"], s["alpha"], s["beta"], s["cap"]) == ("independent", 5, 3, 0.4)
     assert (s["weights"], s["parameterization"], s["max_iterations"], s["seed"]) == ([1.0, 2.0], "logit", 50, 7)
     assert s["types"] == ["square"]
-    unlimited = primfit.fit(cloud, size=1.0, beta="inf", alpha=float("inf")).settings
+    assert (s["frame"]["source"], s["refine"]) == ("axis", None)
+    unlimited = primfit.fit(cloud, size=1.0, beta="inf", alpha=float("inf"), **LATTICE).settings
     assert (unlimited["alpha"], unlimited["beta"]) == ("inf", "inf")
 
 
 def test_fit_is_deterministic_and_float32_gives_the_same_answer():
     cloud = corner()
-    a = primfit.fit(cloud, size=1.0)
-    b = primfit.fit(cloud.astype(np.float32), size=1.0)  # rounded points, same lattice
-    c = primfit.fit(cloud, size=1.0)
+    a = primfit.fit(cloud, size=1.0, **LATTICE)
+    b = primfit.fit(cloud.astype(np.float32), size=1.0, **LATTICE)  # rounded points, same lattice
+    c = primfit.fit(cloud, size=1.0, **LATTICE)
     assert a.to_json() == c.to_json()
     assert [key(q) for q in b.primitives] == [key(q) for q in a.primitives]
 
@@ -88,14 +93,14 @@ def test_mesh_type_with_an_array_mesh():
     vertices = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], dtype=float)
     faces = np.array([[0, 1, 2], [0, 2, 3]])
     cloud = corner()[:1600]  # the floor only
-    result = primfit.fit(cloud, types=["mesh"], mesh_model=(vertices, faces), size=1.0, spacing=0.5)
+    result = primfit.fit(cloud, types=["mesh"], mesh_model=(vertices, faces), size=1.0, spacing=0.5, **LATTICE)
     assert result.primitives and all(q["type"] == "mesh" for q in result.primitives)
     assert result.metrics["point_to_model_mean"] < 0.01
 
 
 def test_candidates_reproduce_the_fit_loss():
     cloud = corner()
-    cands = primfit.candidates(cloud, size=1.0)
+    cands = primfit.candidates(cloud, size=1.0, **LATTICE)
     n = len(cands)
     assert n > 8 and cands.samples.shape[1] == 3 and cands.owner.shape == (len(cands.samples),)
     assert set(np.unique(cands.owner)) == set(range(n))
@@ -108,7 +113,7 @@ def test_scipy_lbfgsb_on_our_loss_reaches_the_fit_solution():
     optimize = require("scipy.optimize")
     rng = np.random.default_rng(3)
     cloud = corner() + rng.normal(0.0, 0.005, (3200, 3))
-    options = dict(size=1.0)
+    options = dict(size=1.0, **LATTICE)
     cands = primfit.candidates(cloud, **options)
     problem = cands.problem()
     w_prim, w_point = problem.weights
@@ -155,18 +160,75 @@ def test_cli_fit_gives_the_same_result(tmp_path):
     primfit.write_ply(scene, cloud)
     out = tmp_path / "result.json"
     run = subprocess.run(
-        # The library's defaults: scene axes, no continuous refinement (the CLI defaults to
-        # --frame auto with refinement, for real scans).
         [str(cli), "fit", str(scene), "-o", str(out), "--size", "1", "--frame", "axis", "--no-refine", "--quiet"],
         capture_output=True,
         text=True
     )
     assert run.returncode == 0, run.stderr
     doc = json.loads(out.read_text())
-    ours = primfit.fit(primfit.read_ply(scene)["points"], size=1.0)
+    ours = primfit.fit(primfit.read_ply(scene)["points"], size=1.0, **LATTICE)
     assert [key(q) for q in doc["primitives"]] == [key(q) for q in ours.primitives]
     np.testing.assert_allclose([q["existence"] for q in doc["primitives"]], ours.existence, rtol=1e-12)
     settings = {k: v for k, v in doc["settings"].items() if k != "scene"}
     assert settings == ours.settings
     for name, value in ours.metrics.items():
         assert doc["metrics"][name] == pytest.approx(value, rel=1e-9), name
+
+
+@pytest.mark.parametrize("name", ["hallway", "pipe", "plane_scan"])
+def test_fit_without_options_is_primfit_fit_on_every_bundled_example(tmp_path, name):
+    """`primfit.fit(points)` with no options gives the primitives of `primfit fit FILE`."""
+    cli = cli_binary()
+    scene = REPO / "examples" / f"{name}.ply"
+    out = tmp_path / "result.json"
+    run = subprocess.run([str(cli), "fit", str(scene), "-o", str(out), "--quiet"], capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    doc = json.loads(out.read_text())
+    ours = primfit.fit(primfit.read_ply(scene)["points"])
+    assert len(ours.primitives) == len(doc["primitives"]) > 0
+    for q, c in zip(ours.primitives, doc["primitives"]):
+        assert (q["type"], set(q["size"])) == (c["type"], set(c["size"]))
+        ours_numbers = [*q["size"].values(), *q["pose"]["translation"], *q["pose"]["rotation"], q["pose"]["scale"]]
+        cli_numbers = [*c["size"].values(), *c["pose"]["translation"], *c["pose"]["rotation"], c["pose"]["scale"]]
+        np.testing.assert_allclose(ours_numbers, cli_numbers, rtol=0, atol=1e-9)
+    np.testing.assert_allclose([q["existence"] for q in doc["primitives"]], ours.existence, rtol=0, atol=1e-9)
+    settings = {k: v for k, v in doc["settings"].items() if k != "scene"}
+    assert settings == ours.settings
+
+
+def test_every_fit_option_reaches_the_core(tmp_path):
+    cloud = corner()
+    frame = {"rotation": [1.0, 0.0, 0.0, 0.0], "origin": [0.0, 0.0, 0.0]}
+    s = primfit.fit(
+        cloud, size=1.0, frame=frame, refine=True, refine_rounds=2, search_points=0, polish=False,
+        max_iterations=30, sample_spacing=0.1, types=["square", "disk"],
+    ).settings
+    assert s["frame"]["source"] == "given" and s["origin"] == [0.0, 0.0, 0.0]
+    assert s["refine"]["rounds"] == 2 and s["polish"] is False and s["max_iterations"] == 30
+    assert s["types"] == ["square", "disk"] and s["sample_spacing"] == 0.1
+    assert s["search_points"] == primfit.fit(cloud, size=1.0, search_points="inf", **LATTICE).settings["search_points"]
+    # A frame file (here an earlier result) is read as `--frame FILE` does.
+    earlier = tmp_path / "earlier.json"
+    earlier.write_text(primfit.fit(cloud, size=1.0, **LATTICE).to_json())
+    assert primfit.fit(cloud, size=1.0, frame=str(earlier), refine=False).settings["frame"]["source"] == "given"
+    # The method's own options; mcmc needs sensor origins.
+    with pytest.raises(ValueError, match="sensor"):
+        primfit.fit(cloud, size=1.0, method="mcmc", steps=10)
+    with pytest.raises(ValueError, match="method"):
+        primfit.fit(cloud, method="annealing")
+    with pytest.raises(OSError, match="sideways"):  # neither auto, axis nor a file
+        primfit.fit(cloud, frame="sideways")
+
+
+def test_mcmc_on_a_scanned_dict_as_read_ply_returns(tmp_path):
+    cli = cli_binary()
+    scan = tmp_path / "scan.ply"
+    run = subprocess.run([str(cli), "synth", "hallway", "--length", "4", "--scan", "2", "-o", str(scan), "--quiet"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    cloud = primfit.read_ply(scan)
+    assert "sensors" in cloud
+    result = primfit.fit(cloud, size=1.0, method="mcmc", steps=500, sigma=0.02, **LATTICE)
+    s = result.settings
+    assert s["method"] == "mcmc" and s["mcmc"]["steps"] == 500 and s["ray"]["sigma"] == 0.02
+    assert "beta" not in s and result.primitives

@@ -5,20 +5,33 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use primfit_core::atlas::{MeshShape, ShapeKind};
-use primfit_core::chamfer::PointModel;
-use primfit_core::fit::{FitOptions, McmcFitOptions, fit, fit_mcmc};
+use primfit_core::fit::{
+    DEFAULT_FRAME, DEFAULT_KIND, DEFAULT_MAX_ITERATIONS, DEFAULT_PRIOR, DEFAULT_SEARCH_POINTS,
+    DEFAULT_SEED, FitOptions, McmcFitOptions, MethodOptions, fit,
+};
 use primfit_core::frame::FrameChoice;
 use primfit_core::io::{self, Encoding};
 use primfit_core::na::Point3;
 use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
+use primfit_core::{Limit, chamfer::PointModel as Model};
 
+use super::sizes::SizeArgs;
 use super::{Output, check_output, parse_limit, parse_pair, parse_point};
 use crate::progress::Bars;
 
 /// Arguments of `primfit fit`. Every size defaults to a value derived from the cloud
-/// (printed with `-v`, and written to the result's `settings`).
+/// (printed with `-v`, and written to the result's `settings`); every other default is
+/// the library's ([`FitOptions::default`]).
 #[derive(Debug, Args)]
+#[command(
+    mut_arg("size", |a| a.help(
+        "Candidate main extent in scene units: square side, disk/sphere diameter, cylinder \
+         length [default: bounding-box diagonal / 8, rounded down to 1, 2 or 5 × 10^k]"
+    )),
+    mut_arg("radius", |a| a.help("Tube radius of cylinders and elbows [default: size / 10]")),
+    mut_arg("bend", |a| a.help("Elbow bend radius (centre line) [default: spacing]")),
+)]
 pub struct FitArgs {
     /// The scan: a PLY point cloud (ascii or binary; float or double coordinates).
     pub scene: PathBuf,
@@ -32,18 +45,11 @@ pub struct FitArgs {
     #[arg(long)]
     pub ascii: bool,
     /// Primitive types: comma-separated from square, disk, cylinder, elbow, sphere, mesh.
-    #[arg(long, value_delimiter = ',', default_value = "square")]
+    #[arg(long, value_delimiter = ',', default_value = DEFAULT_KIND.name())]
     pub types: Vec<String>,
-    /// Candidate main extent in scene units: square side, disk/sphere diameter, cylinder
-    /// length [default: bounding-box diagonal / 8, rounded down to 1, 2 or 5 × 10^k].
-    #[arg(long)]
-    pub size: Option<f64>,
-    /// Tube radius of cylinders and elbows [default: size / 10].
-    #[arg(long)]
-    pub radius: Option<f64>,
-    /// Elbow bend radius (centre line) [default: spacing].
-    #[arg(long)]
-    pub bend: Option<f64>,
+    /// Candidate sizes.
+    #[command(flatten)]
+    pub sizes: SizeArgs,
     /// Lattice translation step [default: size / 2].
     #[arg(long)]
     pub spacing: Option<f64>,
@@ -55,7 +61,7 @@ pub struct FitArgs {
     /// 32 nearest neighbours) and puts the grid on the data; `axis` uses the scene axes
     /// and origin; a FILE is JSON `{"rotation": [w,x,y,z], "origin": [x,y,z]}` (origin
     /// optional) or an earlier result.json (its settings.frame and origin are reused).
-    #[arg(long, default_value = "auto", value_name = "auto|axis|FILE")]
+    #[arg(long, default_value = DEFAULT_FRAME.name(), value_name = "auto|axis|FILE")]
     pub frame: String,
     /// Skip the continuous refinement of the chosen primitives' poses and sizes (and the
     /// existence re-check after it).
@@ -69,14 +75,14 @@ pub struct FitArgs {
     #[arg(long)]
     pub sample_spacing: Option<f64>,
     /// Point-term model.
-    #[arg(long, default_value = "existence", value_parser = ["existence", "independent"])]
+    #[arg(long, default_value = Model::default().name(), value_parser = ["existence", "independent"])]
     pub model: String,
-    /// α: samples per candidate and point (independent model) [default: 10; `inf` = all].
-    #[arg(long, value_parser = parse_limit)]
-    pub alpha: Option<usize>,
-    /// β: candidates per point [default: 32; `inf` = all].
-    #[arg(long, value_parser = parse_limit)]
-    pub beta: Option<usize>,
+    /// α: samples per candidate and point (independent model); `inf` = all.
+    #[arg(long, value_parser = parse_limit, default_value_t = FitOptions::default().alpha)]
+    pub alpha: Limit,
+    /// β: candidates per point; `inf` = all.
+    #[arg(long, value_parser = parse_limit, default_value_t = FitOptions::default().beta)]
+    pub beta: Limit,
     /// Distance whose square is the cost of an unexplained point [default: max(spacing,
     /// 5σ) with σ the scan's noise level, estimated from local plane fits].
     #[arg(long)]
@@ -85,18 +91,18 @@ pub struct FitArgs {
     #[arg(long, value_parser = parse_pair, allow_hyphen_values = true)]
     pub weights: Option<[f64; 2]>,
     /// Inference method (mcmc needs sensor origins per point).
-    #[arg(long, default_value = "chamfer", value_parser = ["chamfer", "mcmc"])]
+    #[arg(long, default_value = MethodOptions::default().name(), value_parser = ["chamfer", "mcmc"])]
     pub method: String,
     /// Existence parameterisation of L-BFGS.
-    #[arg(long, default_value = "box", value_parser = ["box", "logit"])]
+    #[arg(long, default_value = Parameterization::default().name(), value_parser = ["box", "logit"])]
     pub parameterization: String,
     /// Maximum L-BFGS iterations.
-    #[arg(long, default_value_t = 200)]
+    #[arg(long, default_value_t = DEFAULT_MAX_ITERATIONS)]
     pub max_iterations: usize,
     /// Larger clouds are solved in two phases: L-BFGS and the polish's search moves on
     /// about this many points (point term reweighted), then L-BFGS and single flips on
     /// every point. 0 = one phase on every point (slower on large clouds).
-    #[arg(long, default_value_t = 50_000)]
+    #[arg(long, default_value_t = DEFAULT_SEARCH_POINTS.get().unwrap_or(0))]
     pub search_points: usize,
     /// Skip the discrete polish after thresholding.
     #[arg(long)]
@@ -114,13 +120,13 @@ pub struct FitArgs {
     #[arg(long)]
     pub sigma: Option<f64>,
     /// mcmc: prior existence probability of a candidate with nearby points.
-    #[arg(long, default_value_t = 0.1)]
+    #[arg(long, default_value_t = DEFAULT_PRIOR)]
     pub prior: f64,
     /// Triangle mesh (PLY with faces) used by the `mesh` type.
     #[arg(long, value_name = "object.ply")]
     pub mesh_model: Option<PathBuf>,
     /// Seed for every random choice.
-    #[arg(long, default_value_t = 0)]
+    #[arg(long, default_value_t = DEFAULT_SEED)]
     pub seed: u64,
 }
 
@@ -146,10 +152,10 @@ impl FitArgs {
             (None, true) => bail!("--types mesh needs --mesh-model object.ply"),
             (None, false) => None,
         };
-        let (primitive_weight, point_weight) = match self.weights {
-            Some([a, b]) => (Some(a), Some(b)),
-            None => (None, None),
-        };
+        let defaults = FitOptions::default();
+        let [primitive_weight, point_weight] = self
+            .weights
+            .unwrap_or([defaults.primitive_weight, defaults.point_weight]);
         let frame = match self.frame.as_str() {
             "auto" | "axis" => FrameChoice::parse(&self.frame)?,
             file => {
@@ -162,19 +168,23 @@ impl FitArgs {
         };
         let refine = (!self.no_refine).then(|| RefineOptions {
             rounds: self.refine_rounds,
-            ..Default::default()
+            ..defaults.refine.clone().unwrap_or_default()
         });
+        let method = match MethodOptions::parse(&self.method)? {
+            MethodOptions::Mcmc(_) => MethodOptions::Mcmc(self.mcmc_options()),
+            chamfer => chamfer,
+        };
         Ok(FitOptions {
             kinds,
             frame,
             refine,
-            size: self.size,
-            radius: self.radius,
-            bend: self.bend,
+            size: self.sizes.size,
+            radius: self.sizes.radius,
+            bend: self.sizes.bend,
             spacing: self.spacing,
             origin: self.origin.map(|[x, y, z]| Point3::new(x, y, z)),
             sample_spacing: self.sample_spacing,
-            model: PointModel::parse(&self.model)?,
+            model: Model::parse(&self.model)?,
             alpha: self.alpha,
             beta: self.beta,
             cap: self.cap,
@@ -185,12 +195,13 @@ impl FitArgs {
                 parameterization: Parameterization::parse(&self.parameterization)?,
                 max_iterations: self.max_iterations,
                 search_points: match self.search_points {
-                    0 => usize::MAX,
-                    n => n,
+                    0 => Limit::All,
+                    n => Limit::At(n),
                 },
                 polish: !self.no_polish,
-                ..Default::default()
+                ..defaults.solver
             },
+            method,
             memory_budget: None,
             seed: self.seed,
         })
@@ -252,11 +263,8 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
         );
     }
     let bars = Bars::new(out.quiet, out.verbose);
-    let result = match args.method.as_str() {
-        "mcmc" => fit_mcmc(&cloud, &options, &args.mcmc_options(), &bars),
-        _ => fit(&cloud, &options, &bars),
-    }
-    .with_context(|| format!("fitting {}", args.scene.display()))?;
+    let result = fit(&cloud, &options, &bars)
+        .with_context(|| format!("fitting {}", args.scene.display()))?;
     let metrics = super::eval::measure(&cloud, &result.primitives, None)?;
     let encoding = if args.ascii {
         Encoding::Ascii
@@ -318,7 +326,12 @@ fn print_summary(
         m.coverage_tau,
         100.0 * m.coverage
     );
-    if verbose && r.settings.method == primfit_core::fit::Method::Mcmc {
+    if verbose
+        && matches!(
+            r.settings.method,
+            primfit_core::fit::MethodSettings::Mcmc(_)
+        )
+    {
         let s = &r.stats;
         println!(
             "{} crossings × {} B = {:.1} MiB; lattice {:.2} s, ray table {:.2} s, sampling {:.2} s ({} proposals, {} accepted)",

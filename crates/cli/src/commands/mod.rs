@@ -3,10 +3,12 @@
 use std::path::Path;
 
 use anyhow::{Result, bail};
+use primfit_core::Limit;
 
 pub mod eval;
 pub mod fit;
 pub mod register;
+pub mod sizes;
 pub mod synth;
 
 /// How much to print.
@@ -31,13 +33,13 @@ pub fn parse_point(s: &str) -> Result<[f64; 3], String> {
     }
 }
 
-/// Parses a count or `inf` (unlimited, as `usize::MAX`).
-pub fn parse_limit(s: &str) -> Result<usize, String> {
+/// Parses a count or `inf` (unlimited).
+pub fn parse_limit(s: &str) -> Result<Limit, String> {
     match s {
-        "inf" | "all" | "none" => Ok(usize::MAX),
+        "inf" | "all" | "none" => Ok(Limit::All),
         _ => match s.parse::<usize>() {
             Ok(0) => Err("must be at least 1 (or inf)".into()),
-            Ok(n) => Ok(n),
+            Ok(n) => Ok(Limit::At(n)),
             Err(e) => Err(format!("{e} (expected a count or inf)")),
         },
     }

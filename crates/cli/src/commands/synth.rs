@@ -10,6 +10,7 @@ use primfit_core::io::{self, Encoding};
 use primfit_core::synth::{self, Density, Misalignment, Noise, Scene};
 use serde_json::{Value, json};
 
+use super::sizes::SizeArgs;
 use super::{Output, check_output};
 
 /// Scene kinds.
@@ -29,6 +30,11 @@ pub enum Kind {
 
 /// Arguments of `primfit synth`.
 #[derive(Debug, Args)]
+#[command(
+    mut_arg("size", |a| a.help("Hallway square side, pipe segment length [default: 1]")),
+    mut_arg("radius", |a| a.help("Pipe / cylinder radius")),
+    mut_arg("bend", |a| a.help("Pipe elbow bend radius [default: size / 2]")),
+)]
 pub struct SynthArgs {
     /// The scene to generate.
     #[arg(value_enum)]
@@ -61,15 +67,9 @@ pub struct SynthArgs {
     /// Total number of points [default: from a per-scene density].
     #[arg(long)]
     pub points: Option<usize>,
-    /// Hallway square side, pipe segment length [default: 1].
-    #[arg(long)]
-    pub size: Option<f64>,
-    /// Pipe / cylinder radius.
-    #[arg(long)]
-    pub radius: Option<f64>,
-    /// Pipe elbow bend radius [default: size / 2].
-    #[arg(long)]
-    pub bend: Option<f64>,
+    /// Sizes of the true primitives.
+    #[command(flatten)]
+    pub sizes: SizeArgs,
     /// Hallway length [default: 10].
     #[arg(long)]
     pub length: Option<f64>,
@@ -213,7 +213,7 @@ fn hallway(a: &SynthArgs) -> Result<Scene> {
         length: a.length.unwrap_or(d.length),
         width: a.width.unwrap_or(d.width),
         height: a.height.unwrap_or(d.height),
-        side: a.size.unwrap_or(d.side),
+        side: a.sizes.size.unwrap_or(d.side),
         ceiling: a.ceiling,
         density: density(a.points, d.density),
         noise: noise(a, d.noise.jitter),
@@ -228,9 +228,9 @@ fn pipe(a: &SynthArgs) -> Result<Scene> {
     let d = synth::PipeParams::default();
     let p = synth::PipeParams {
         segments: a.segments.unwrap_or(d.segments),
-        segment_length: a.size.unwrap_or(d.segment_length),
-        bend: a.bend.or(d.bend),
-        radius: a.radius.or(d.radius),
+        segment_length: a.sizes.size.unwrap_or(d.segment_length),
+        bend: a.sizes.bend.or(d.bend),
+        radius: a.sizes.radius.or(d.radius),
         density: density(a.points, d.density),
         noise: noise(a, d.noise.jitter),
         misalignment: misalignment(a),
@@ -245,7 +245,7 @@ fn nine_cylinders(a: &SynthArgs) -> Result<Scene> {
     let d = synth::NineCylinderParams::default();
     let p = synth::NineCylinderParams {
         mask: a.mask,
-        radius: a.radius.unwrap_or(d.radius),
+        radius: a.sizes.radius.unwrap_or(d.radius),
         density: density(a.points, d.density),
         noise: noise(a, d.noise.jitter),
         offset: a.offset,

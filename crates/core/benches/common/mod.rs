@@ -110,7 +110,7 @@ impl BenchScene {
             model: self.model,
             size: Some(1.0),
             spacing: Some(0.5),
-            ..Default::default()
+            ..FitOptions::lattice()
         };
         if !self.polish {
             base.solver.max_polish_sweeps = 0;

@@ -56,7 +56,7 @@ pub fn pipe_options(spacing: f64) -> FitOptions {
         spacing: Some(spacing),
         // The thesis's cap is tied to the base lattice, not to the level under study.
         cap: Some(0.5),
-        ..Default::default()
+        ..FitOptions::lattice()
     }
 }
 

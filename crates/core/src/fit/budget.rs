@@ -51,18 +51,6 @@ pub fn estimate_bytes(
     points as u64 * (coefficients + transient + BYTES_PER_POINT)
 }
 
-/// `1.3 GiB`, `250 MiB`, `12 KiB`.
-pub(crate) fn human_bytes(b: u64) -> String {
-    let b = b as f64;
-    if b >= (1u64 << 30) as f64 {
-        format!("{:.1} GiB", b / (1u64 << 30) as f64)
-    } else if b >= (1u64 << 20) as f64 {
-        format!("{:.0} MiB", b / (1u64 << 20) as f64)
-    } else {
-        format!("{:.0} KiB", b / 1024.0)
-    }
-}
-
 /// Bytes per input point besides the coefficients in [`estimate_bytes`]: the cloud
 /// (24), the KD-tree built over it (~28, shared by the settings and the primitive term),
 /// the build's cell order (12), and the polish's per-point owner and cost (12), rounded

@@ -46,9 +46,7 @@ pub(super) fn fill_gaps(
     if residual.len() < 20 || residual.len() * 100 < cloud.len() {
         return Ok(result);
     }
-    let mut fine = s.clone();
-    fine.spacing = s.spacing / 2.0;
-    fine.refine = None;
+    let fine = s.finer();
     let sub = PointCloud::from_points(residual);
     let sub_index = PointIndex::new(&sub.points);
     let Ok(extra) = fit_pass(&sub, &sub_index, fine, progress) else {

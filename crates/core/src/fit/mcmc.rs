@@ -1,11 +1,13 @@
-//! [`fit_mcmc`]: the whole thesis-chapter-4 pipeline behind `primfit fit --method mcmc`.
+//! `fit_mcmc`: the whole thesis-chapter-4 pipeline behind `primfit fit --method mcmc`
+//! ([`super::fit`] with [`super::MethodOptions::Mcmc`]).
 //!
 //! cloud (with sensor origins) → lattice candidates ([`CandidateSet::build`]) → the
 //! §4.2.1 prior keeps the supported ones → [`RayTable`] → Metropolis–Hastings → the best
 //! visited scene, as a [`FitResult`] (so JSON, mesh and metrics output are shared with
 //! the chamfer method).
 //!
-//! Defaults (scene units, metres for the bundled data):
+//! Defaults (scene units, metres for the bundled data; the fixed ones are
+//! [`super::McmcFitOptions::default`]):
 //!
 //! | setting | default |
 //! |---|---|
@@ -18,70 +20,68 @@
 
 use std::time::Instant;
 
-use serde_json::{Value, json};
-
-use super::{FitOptions, FitResult, FitStats, Method, Settings};
+use super::{FitOptions, FitResult, FitStats, MethodSettings, Settings};
 use crate::chamfer::LossValue;
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
 use crate::ray::{
-    Entry, McmcOptions, McmcResult, PriorOptions, RayModel, RayTable, Rays, existence_prior,
-    flip_rates, sample,
+    Entry, McmcOptions, PriorOptions, RayTable, Rays, existence_prior, flip_rates, sample,
 };
 use crate::solve::{Solution, StopReason};
 use crate::spatial::PointIndex;
 use crate::{Error, PointCloud, Primitive, Result};
 
-/// Options of [`fit_mcmc`] on top of [`FitOptions`] (sizes, lattice, seed); `None` means
-/// "derive" (see the module docs).
-#[derive(Debug, Clone, PartialEq)]
-pub struct McmcFitOptions {
-    /// Noise rate `r` (1 / scene unit).
-    pub rate: Option<f64>,
-    /// Surface deviation σ (scene units).
-    pub sigma: Option<f64>,
-    /// Floor of `|cos θ|` in the projected deviation.
-    pub min_cos: f64,
-    /// `p(φ_i = 1)` of supported candidates.
-    pub prior: f64,
-    /// Proposals after burn-in.
-    pub steps: Option<usize>,
-    /// Proposals before counting.
-    pub burn_in: Option<usize>,
-    /// Expected flips per proposal.
-    pub flips_per_step: f64,
-    /// Flip-rate factor per frame of age.
-    pub decay: f64,
-}
+/// Default proposals after burn-in are `max(MIN_STEPS, STEPS_PER_CANDIDATE · N)` for N
+/// supported candidates.
+const MIN_STEPS: usize = 1000;
+/// See [`MIN_STEPS`].
+const STEPS_PER_CANDIDATE: usize = 20;
+/// The default burn-in is the proposals after it divided by this.
+const STEPS_PER_BURN_IN: usize = 5;
 
-impl Default for McmcFitOptions {
-    fn default() -> Self {
-        McmcFitOptions {
-            rate: None,
-            sigma: None,
-            min_cos: 0.2,
-            prior: 0.1,
-            steps: None,
-            burn_in: None,
-            flips_per_step: 1.0,
-            decay: 0.9,
-        }
-    }
+/// Who needs what the errors of this module name as missing.
+const METHOD: &str = "the mcmc method";
+
+/// What the `mcmc` sampler did (written to `result.json` under `settings.mcmc`).
+#[derive(Debug, Clone, PartialEq)]
+pub struct McmcRun {
+    /// Proposals after burn-in.
+    pub steps: usize,
+    /// Proposals before the existence frequencies counted.
+    pub burn_in: usize,
+    /// Accepted proposals.
+    pub accepted: usize,
+    /// Single flips of the final climb from the best visited scene.
+    pub polish_flips: usize,
+    /// Log-likelihood of the chosen scene.
+    pub log_likelihood: f64,
+    /// Log-posterior of the chosen scene.
+    pub log_posterior: f64,
+    /// Sensor frames of the rays.
+    pub frames: usize,
+    /// Points skipped as rays (coinciding with their sensor origin).
+    pub skipped_points: usize,
 }
 
 /// Fits primitives to a cloud with sensor origins by the ray likelihood and MCMC
-/// (thesis ch. 4). Errors when the cloud has no sensor origins.
-pub fn fit_mcmc(
+/// (thesis ch. 4): [`super::fit`] with [`MethodOptions::Mcmc`]. Errors when the cloud has
+/// no sensor origins.
+pub(super) fn fit_mcmc(
     cloud: &PointCloud,
     options: &FitOptions,
-    mcmc: &McmcFitOptions,
     progress: &dyn Progress,
 ) -> Result<FitResult> {
     let rays = check_cloud(cloud)?;
     let index = PointIndex::new(&cloud.points);
-    let mut settings = Settings::resolve(cloud, &index, options)?;
-    settings.method = Method::Mcmc;
-    let model = resolve_model(cloud, &settings, mcmc)?;
+    let settings = Settings::resolve(cloud, &index, options)?;
+    let MethodSettings::Mcmc(mcmc) = &settings.method else {
+        return Err(Error::Unknown {
+            what: "method of an mcmc fit",
+            value: settings.method.name().into(),
+            expected: "mcmc",
+        });
+    };
+    let model = mcmc.ray;
 
     let t0 = Instant::now();
     let (candidates, prior) = supported_candidates(cloud, &settings, mcmc.prior)?;
@@ -101,10 +101,12 @@ pub fn fit_mcmc(
         table.entries()
     ));
 
-    let steps = mcmc.steps.unwrap_or((20 * candidates.len()).max(1000));
+    let steps = mcmc
+        .steps
+        .unwrap_or((STEPS_PER_CANDIDATE * candidates.len()).max(MIN_STEPS));
     let sampler = McmcOptions {
         steps,
-        burn_in: mcmc.burn_in.unwrap_or(steps / 5),
+        burn_in: mcmc.burn_in.unwrap_or(steps / STEPS_PER_BURN_IN),
         flips_per_step: mcmc.flips_per_step,
         decay: mcmc.decay,
         seed: settings.seed,
@@ -115,7 +117,16 @@ pub fn fit_mcmc(
     let run = sample(&table, &prior, &rates, &sampler, progress)?;
     let solve_seconds = t2.elapsed().as_secs_f64();
 
-    settings.method_settings = method_json(&model, mcmc.prior, &sampler, &rays, &run);
+    let record = McmcRun {
+        steps: sampler.steps,
+        burn_in: sampler.burn_in,
+        accepted: run.accepted,
+        polish_flips: run.polish_flips,
+        log_likelihood: run.best_log_likelihood,
+        log_posterior: run.best_log_posterior,
+        frames: rays.frames.len(),
+        skipped_points: rays.skipped,
+    };
     let chosen: Vec<usize> = (0..candidates.len()).filter(|&i| run.best[i]).collect();
     let stats = FitStats {
         points: cloud.len(),
@@ -141,48 +152,36 @@ pub fn fit_mcmc(
         flips: run.accepted,
     };
     Ok(FitResult {
-        settings,
         primitives: chosen.iter().map(|&i| candidates[i].clone()).collect(),
         existence: chosen.iter().map(|&i| run.frequency[i]).collect(),
+        settings,
         solution,
         stats,
+        mcmc: Some(record),
     })
 }
 
 /// The rays of a non-empty, finite cloud with sensor origins.
 fn check_cloud(cloud: &PointCloud) -> Result<Rays> {
     if cloud.is_empty() {
-        return Err(Error::invalid("the cloud is empty"));
+        return Err(Error::EmptyCloud);
     }
     if cloud.sensors.is_none() {
-        return Err(Error::invalid(
-            "--method mcmc needs each point's sensor origin: give the PLY vertex properties \
-             sensor_x, sensor_y, sensor_z (or use --method chamfer)",
-        ));
+        return Err(Error::Missing {
+            what: "each point's sensor origin (the PLY vertex properties sensor_x, sensor_y, \
+                   sensor_z)"
+                .into(),
+            needed_by: METHOD,
+        });
     }
     let rays = Rays::from_cloud(cloud)?;
     if rays.is_empty() {
-        return Err(Error::invalid(
-            "every point coincides with its sensor origin: no rays",
-        ));
+        return Err(Error::Missing {
+            what: "a ray: a point apart from its sensor origin".into(),
+            needed_by: METHOD,
+        });
     }
     Ok(rays)
-}
-
-/// The measurement model with defaults from the cloud.
-fn resolve_model(cloud: &PointCloud, s: &Settings, o: &McmcFitOptions) -> Result<RayModel> {
-    let diagonal = cloud
-        .bounds()
-        .map(|(lo, hi)| (hi - lo).norm())
-        .unwrap_or(1.0)
-        .max(s.spacing);
-    let model = RayModel {
-        rate: o.rate.unwrap_or(1.0 / diagonal),
-        sigma: o.sigma.unwrap_or(s.spacing / 10.0),
-        min_cos: o.min_cos,
-    };
-    model.validate()?;
-    Ok(model)
 }
 
 /// Lattice candidates whose §4.2.1 prior is positive, with that prior.
@@ -205,47 +204,20 @@ fn supported_candidates(
     let (kept, prior): (Vec<Primitive>, Vec<f64>) =
         all.into_iter().zip(prior).filter(|(_, p)| *p > 0.0).unzip();
     if kept.is_empty() {
-        return Err(Error::invalid(
-            "no candidate is supported by the prior (no points near any lattice node with a \
-             matching label/normal)",
-        ));
+        return Err(Error::Missing {
+            what: "a candidate supported by the prior (points near a lattice node with a \
+                   matching label or normal)"
+                .into(),
+            needed_by: METHOD,
+        });
     }
     Ok((kept, prior))
-}
-
-/// The method's settings for `result.json`.
-fn method_json(
-    model: &RayModel,
-    prior: f64,
-    sampler: &McmcOptions,
-    rays: &Rays,
-    run: &McmcResult,
-) -> serde_json::Map<String, Value> {
-    let v = json!({
-        "ray": { "rate": model.rate, "sigma": model.sigma, "min_cos": model.min_cos },
-        "mcmc": {
-            "prior": prior,
-            "steps": sampler.steps,
-            "burn_in": sampler.burn_in,
-            "flips_per_step": sampler.flips_per_step,
-            "decay": sampler.decay,
-            "accepted": run.accepted,
-            "polish_flips": run.polish_flips,
-            "log_likelihood": run.best_log_likelihood,
-            "log_posterior": run.best_log_posterior,
-            "frames": rays.frames.len(),
-            "skipped_points": rays.skipped,
-        },
-    });
-    match v {
-        Value::Object(m) => m,
-        _ => serde_json::Map::new(),
-    }
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::fit::{McmcFitOptions, MethodOptions};
     use crate::progress::Silent;
     use crate::ray::tests::room;
 
@@ -256,13 +228,13 @@ mod tests {
             size: Some(1.0),
             spacing: Some(0.5),
             seed: 1,
-            ..Default::default()
+            method: MethodOptions::Mcmc(McmcFitOptions {
+                sigma: Some(0.02),
+                ..Default::default()
+            }),
+            ..FitOptions::lattice()
         };
-        let mcmc = McmcFitOptions {
-            sigma: Some(0.02),
-            ..Default::default()
-        };
-        let result = fit_mcmc(&cloud, &options, &mcmc, &Silent).unwrap();
+        let result = super::super::fit(&cloud, &options, &Silent).unwrap();
         assert!(!result.primitives.is_empty());
         for p in &result.primitives {
             let c = p.center();
@@ -285,7 +257,7 @@ mod tests {
         assert!(json["settings"]["mcmc"]["accepted"].as_u64().unwrap() > 0);
         // Without sensor origins it says so.
         let bare = PointCloud::from_points(cloud.points.clone());
-        let err = fit_mcmc(&bare, &options, &mcmc, &Silent)
+        let err = super::super::fit(&bare, &options, &Silent)
             .unwrap_err()
             .to_string();
         assert!(err.contains("sensor"), "{err}");

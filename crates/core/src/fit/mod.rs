@@ -5,17 +5,19 @@
 //! | stage | file | what it does |
 //! |---|---|---|
 //! | validate | `mod.rs` | the cloud is non-empty and finite |
-//! | resolve | [`settings`](Settings::resolve) | [`FitOptions`] (what a user may set) → [`Settings`] (every value used; the one table of defaults) |
+//! | options | `options.rs` | [`FitOptions`] (what a user may set); its `Default` is the one table of fixed defaults, `primfit fit`'s and `primfit.fit`'s |
+//! | resolve | [`settings`](Settings::resolve) | [`FitOptions`] → [`Settings`] (every value used; the defaults that depend on the cloud) |
 //! | pass | `pass.rs` | lattice candidates near the data → memory check (`budget.rs`, [`estimate_bytes`]) → coefficients → L-BFGS and polish → optional refinement |
 //! | gaps | `gaps.rs` | coarse to fine: a finer lattice where the refined pass leaves points unexplained |
 //! | re-aligned pass | `mod.rs` | with an estimated frame and refinement: the lattice re-aligned to the first pass's primitives, then pass and gaps again |
 //! | pick | `mod.rs` | of the two passes, the one with the lower [`binary_chamfer`] |
 //!
 //! What comes out is a [`FitResult`] (`result.rs`: stats, `result.json`, mesh). The
-//! ray-likelihood method of thesis ch. 4 is a separate pipeline over the same settings:
-//! [`fit_mcmc`] (`mcmc.rs`).
+//! ray-likelihood method of thesis ch. 4 ([`MethodOptions::Mcmc`]) is a separate
+//! pipeline over the same settings (`mcmc.rs`).
 //!
-//! Defaults (see `settings.rs`):
+//! Defaults derived from the cloud (see `settings.rs`; the fixed ones are
+//! [`FitOptions::default`], `options.rs`):
 //!
 //! | setting | default |
 //! |---|---|
@@ -28,23 +30,30 @@
 //! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
 //! | `beta` | 32 candidates per point (24 was the least that recovered every synthetic pipe) |
 //! | `alpha` | 10 samples per candidate (thesis §6.3), `independent` model only |
-//! | frame | [`crate::frame::FrameChoice::Axis`] (the scene axes) in the library; the CLI defaults to `auto`: the scan's dominant axes ([`crate::frame::estimate_frame`]) |
+//! | frame | `auto` ([`DEFAULT_FRAME`]): the scan's dominant axes ([`crate::frame::estimate_frame`]); [`FitOptions::lattice`] is the plain lattice on the scene axes, without refinement |
 //! | lattice origin | `axis`: the scene origin; `auto` and a given frame without origin: grid planes on the data ([`crate::frame::grid_origin`]) |
-//! | refinement | off in the library (`FitOptions::refine = None`); the CLI turns it on ([`crate::refine::RefineOptions::default`]) |
+//! | refinement | on ([`crate::refine::RefineOptions::default`]) |
 
 mod budget;
 mod gaps;
 mod mcmc;
+mod options;
 mod pass;
+mod recentre;
 mod result;
 mod settings;
 #[cfg(test)]
 mod tests;
 
 pub use budget::{BYTES_PER_POINT, estimate_bytes};
-pub use mcmc::{McmcFitOptions, fit_mcmc};
+pub use mcmc::McmcRun;
+pub use options::{
+    DEFAULT_ALPHA, DEFAULT_BETA, DEFAULT_DECAY, DEFAULT_FLIPS_PER_STEP, DEFAULT_FRAME,
+    DEFAULT_KIND, DEFAULT_MAX_ITERATIONS, DEFAULT_MEMORY_SHARE, DEFAULT_MIN_COS, DEFAULT_PRIOR,
+    DEFAULT_SEARCH_POINTS, DEFAULT_SEED, DEFAULT_WEIGHT, FitOptions, McmcFitOptions, MethodOptions,
+};
 pub use result::{FitResult, FitStats, binary_chamfer, primitives_mesh, result_json};
-pub use settings::{FitOptions, Method, Settings};
+pub use settings::{McmcSettings, MethodSettings, Settings};
 
 use crate::frame::realign;
 use crate::progress::Progress;
@@ -58,16 +67,28 @@ use pass::fit_pass;
 /// estimated frame (`auto`) and refinement, the lattice is then re-aligned to the refined
 /// primitives ([`crate::frame::realign`]: their axes and the grid phase of their centres)
 /// and fitted and refined once more; the pass with the lower binary chamfer is kept.
+///
+/// With [`MethodOptions::Mcmc`] the ray likelihood and Metropolis–Hastings decide
+/// existence instead (thesis ch. 4; the cloud needs sensor origins).
 pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) -> Result<FitResult> {
-    if cloud.is_empty() {
-        return Err(Error::invalid("the cloud is empty"));
+    if let MethodOptions::Mcmc(_) = options.method {
+        return mcmc::fit_mcmc(cloud, options, progress);
     }
-    if cloud
+    if cloud.is_empty() {
+        return Err(Error::EmptyCloud);
+    }
+    if let Some(index) = cloud
         .points
         .iter()
-        .any(|p| !p.coords.iter().all(|c| c.is_finite()))
+        .position(|p| !p.coords.iter().all(|c| c.is_finite()))
     {
-        return Err(Error::invalid("the cloud has non-finite coordinates"));
+        return Err(Error::NonFinite {
+            what: "point".into(),
+            index,
+        });
+    }
+    if let Some(shift) = recentre::local_shift(cloud) {
+        return recentre::fit_shifted(cloud, options, progress, shift);
     }
     let index = PointIndex::new(&cloud.points);
     let settings = Settings::resolve(cloud, &index, options)?;
@@ -89,9 +110,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         &first.settings.frame,
         first.settings.spacing,
     );
-    let mut settings = first.settings.clone();
-    settings.frame = frame;
-    settings.origin = origin;
+    let settings = first.settings.realigned(frame, origin);
     progress.message(&format!(
         "re-aligned lattice: frame {:?}, origin {origin:?}",
         frame.quaternion().coords

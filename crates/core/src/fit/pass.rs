@@ -2,10 +2,11 @@
 
 use std::time::Instant;
 
-use super::budget::{estimate_bytes, human_bytes};
+use super::budget::estimate_bytes;
 use super::{FitResult, FitStats, Settings};
 use crate::atlas::Shape;
 use crate::chamfer::Coefficients;
+use crate::error::{Remedy, Unit};
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
 use crate::refine::{RefineContext, Refined, refine};
@@ -46,20 +47,25 @@ fn check_memory(
         .unwrap_or(1);
     let need = estimate_bytes(points, candidates.len(), max_samples, &settings.chamfer);
     if need > settings.memory_budget {
-        return Err(Error::TooLarge(format!(
-            "{} points × {} candidates (β = {}) would need about {} at peak, over the \
-             memory budget of {} (by default half the machine's memory); lower --beta, \
-             use a coarser --spacing, subsample the cloud, or raise the budget \
-             (memory_budget in the Python API)",
-            points,
-            candidates.len(),
-            settings
-                .chamfer
-                .beta
-                .map_or("all".to_string(), |b| b.to_string()),
-            human_bytes(need),
-            human_bytes(settings.memory_budget)
-        )));
+        let beta = settings
+            .chamfer
+            .beta
+            .map_or("all".to_string(), |b| b.to_string());
+        return Err(Error::OverLimit {
+            what: format!(
+                "a fit of {points} points × {} candidates (β = {beta})",
+                candidates.len()
+            ),
+            need: need as f64,
+            limit: settings.memory_budget as f64,
+            unit: Unit::Bytes,
+            remedies: vec![
+                Remedy::Lower("beta"),
+                Remedy::Raise("spacing"),
+                Remedy::Subsample,
+                Remedy::Raise("memory_budget"),
+            ],
+        });
     }
     Ok((need, max_samples))
 }
@@ -81,9 +87,10 @@ pub(super) fn fit_pass(
     }
     let lattice_seconds = t0.elapsed().as_secs_f64();
     if candidates.is_empty() {
-        return Err(Error::invalid(
-            "the lattice has no candidates near the cloud",
-        ));
+        return Err(Error::Missing {
+            what: "a lattice candidate near the cloud".into(),
+            needed_by: "the existence solve",
+        });
     }
     let (need, max_samples) = check_memory(cloud.len(), &candidates, &settings)?;
     progress.message(&format!(
@@ -158,5 +165,6 @@ pub(super) fn fit_pass(
         existence,
         solution,
         stats,
+        mcmc: None,
     })
 }

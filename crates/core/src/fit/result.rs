@@ -3,7 +3,7 @@
 
 use serde_json::{Value, json};
 
-use super::Settings;
+use super::{McmcRun, Settings};
 use crate::atlas::TriMesh;
 use crate::chamfer::{ChamferOptions, Coefficients, Evaluator, LossValue};
 use crate::lattice::CandidateSet;
@@ -57,17 +57,30 @@ pub struct FitResult {
     pub solution: Solution,
     /// Sizes and timings.
     pub stats: FitStats,
+    /// What the sampler did, for the `mcmc` method.
+    pub mcmc: Option<McmcRun>,
 }
 
 impl FitResult {
     /// `result.json` (DESIGN §3); `metrics` is inserted as given.
     pub fn to_json(&self, metrics: Value) -> Value {
-        result_json(
-            self.settings.to_json(),
-            metrics,
-            &self.primitives,
-            &self.existence,
-        )
+        let mut settings = self.settings.to_json();
+        if let (Some(run), Some(Value::Object(m))) = (&self.mcmc, settings.get_mut("mcmc")) {
+            let record = json!({
+                "steps": run.steps,
+                "burn_in": run.burn_in,
+                "accepted": run.accepted,
+                "polish_flips": run.polish_flips,
+                "log_likelihood": run.log_likelihood,
+                "log_posterior": run.log_posterior,
+                "frames": run.frames,
+                "skipped_points": run.skipped_points,
+            });
+            if let Value::Object(r) = record {
+                m.extend(r);
+            }
+        }
+        result_json(settings, metrics, &self.primitives, &self.existence)
     }
 
     /// All primitives as one mesh, with the primitive index of every face.

@@ -1,85 +1,29 @@
-//! [`FitOptions`] (what a user may set), [`Settings`] (every value a fit uses) and
-//! [`Settings::resolve`], which derives the defaults from the cloud.
+//! [`Settings`] (every value a fit uses) and [`Settings::resolve`], which derives the
+//! defaults that depend on the cloud from [`FitOptions`] (what a user may set; its
+//! `Default` is the table of the fixed defaults).
+//!
+//! Resolved settings are not changed afterwards: a stage that needs other values makes
+//! its own ([`Settings::finer`], [`Settings::realigned`]).
 
 use nalgebra::{Point3, UnitQuaternion};
 use serde_json::{Value, json};
 
 use super::budget::physical_memory;
+use super::options::{FitOptions, McmcFitOptions, MethodOptions};
 use crate::atlas::{MeshShape, Shape, ShapeKind};
 use crate::chamfer::{ChamferOptions, PointModel};
 use crate::frame::{FrameChoice, FrameEstimate, estimate_frame, grid_origin};
 use crate::lattice::LatticeSpec;
+use crate::ray::RayModel;
 use crate::refine::RefineOptions;
 use crate::solve::SolverOptions;
 use crate::spatial::{PointIndex, median_spacing};
 use crate::surface::{
     DEFAULT_MAX_POINTS, DEFAULT_NEIGHBOURS, NOISE_MAX_POINTS, local_planes, noise_level,
 };
-use crate::{Error, PointCloud, Result};
+use crate::{Error, PointCloud, Result, check};
 
-/// User-facing options of [`fit`]; `None` means "derive from the cloud".
-#[derive(Debug, Clone, Default)]
-pub struct FitOptions {
-    /// Primitive types to use (default: square).
-    pub kinds: Vec<ShapeKind>,
-    /// Main extent: square side, disk/sphere diameter, cylinder length.
-    pub size: Option<f64>,
-    /// Tube radius of cylinders and elbows.
-    pub radius: Option<f64>,
-    /// Elbow bend radius (centre line).
-    pub bend: Option<f64>,
-    /// Lattice translation step.
-    pub spacing: Option<f64>,
-    /// A lattice point.
-    pub origin: Option<Point3<f64>>,
-    /// How the lattice frame is chosen (default: the scene axes).
-    pub frame: FrameChoice,
-    /// Continuous refinement after the existence decision (default: none).
-    pub refine: Option<RefineOptions>,
-    /// Spacing of candidate surface samples.
-    pub sample_spacing: Option<f64>,
-    /// Point-term model.
-    pub model: PointModel,
-    /// α; `Some(usize::MAX)` = unlimited.
-    pub alpha: Option<usize>,
-    /// β; `Some(usize::MAX)` = unlimited.
-    pub beta: Option<usize>,
-    /// The distance whose square is `d_cap`.
-    pub cap: Option<f64>,
-    /// Weight of the primitive term (default 1).
-    pub primitive_weight: Option<f64>,
-    /// Weight of the point term (default 1).
-    pub point_weight: Option<f64>,
-    /// The mesh used by the `mesh` type.
-    pub mesh: Option<MeshShape>,
-    /// Solver settings.
-    pub solver: SolverOptions,
-    /// Upper bound on the estimated peak memory of the fit ([`estimate_bytes`]), bytes
-    /// (default: half the machine's memory).
-    pub memory_budget: Option<u64>,
-    /// Seed for every random choice (the chamfer fit itself is deterministic).
-    pub seed: u64,
-}
-
-/// The inference method of a fit (`--method`).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub enum Method {
-    /// Probabilistic chamfer + L-BFGS over existence (thesis ch. 6).
-    #[default]
-    Chamfer,
-    /// Ray likelihood + Metropolis–Hastings over existence (thesis ch. 4, [`crate::ray`]).
-    Mcmc,
-}
-
-impl Method {
-    /// The CLI/JSON name.
-    pub fn name(self) -> &'static str {
-        match self {
-            Method::Chamfer => "chamfer",
-            Method::Mcmc => "mcmc",
-        }
-    }
-}
+use super::options::DEFAULT_MEMORY_SHARE;
 
 /// Every setting of a fit, defaults resolved.
 #[derive(Debug, Clone)]
@@ -122,12 +66,71 @@ pub struct Settings {
     pub memory_budget: u64,
     /// Mesh source, if the mesh type is used.
     pub mesh: Option<MeshShape>,
-    /// The inference method.
-    pub method: Method,
-    /// Settings specific to the method, merged into [`Settings::to_json`] (e.g. the ray
-    /// model and sampler of `mcmc`).
-    pub method_settings: serde_json::Map<String, Value>,
+    /// The inference method and the settings only it has.
+    pub method: MethodSettings,
 }
+
+/// The inference method of resolved [`Settings`] with its own settings.
+#[derive(Debug, Clone, PartialEq)]
+pub enum MethodSettings {
+    /// Probabilistic chamfer + L-BFGS over existence (the chamfer settings are
+    /// [`Settings::chamfer`], [`Settings::solver`], [`Settings::cap`]).
+    Chamfer,
+    /// Ray likelihood + Metropolis–Hastings (thesis ch. 4).
+    Mcmc(McmcSettings),
+}
+
+impl MethodSettings {
+    /// The CLI/JSON name: `chamfer` or `mcmc`.
+    pub fn name(&self) -> &'static str {
+        match self {
+            MethodSettings::Chamfer => "chamfer",
+            MethodSettings::Mcmc(_) => "mcmc",
+        }
+    }
+}
+
+/// The settings of the `mcmc` method ([`McmcFitOptions`] resolved).
+#[derive(Debug, Clone, PartialEq)]
+pub struct McmcSettings {
+    /// The measurement model (noise rate, σ, `|cos θ|` floor).
+    pub ray: RayModel,
+    /// `p(φ_i = 1)` of supported candidates.
+    pub prior: f64,
+    /// Proposals after burn-in; `None`: derived from the number of supported candidates
+    /// when they are known (the run's value is [`super::McmcRun::steps`]).
+    pub steps: Option<usize>,
+    /// Proposals before counting; `None`: `steps / 5`.
+    pub burn_in: Option<usize>,
+    /// Expected flips per proposal.
+    pub flips_per_step: f64,
+    /// Flip-rate factor per frame of age.
+    pub decay: f64,
+}
+
+impl McmcSettings {
+    /// `o` with the ray model's defaults: rate `1 / diagonal` (`diagonal` of the cloud's
+    /// bounding box, at least the spacing) and σ = `spacing / 10`.
+    fn resolve(o: &McmcFitOptions, diagonal: f64, spacing: f64) -> Result<Self> {
+        let ray = RayModel {
+            rate: o.rate.unwrap_or(1.0 / diagonal.max(spacing)),
+            sigma: o.sigma.unwrap_or(spacing / MCMC_SIGMA_PER_SPACING),
+            min_cos: o.min_cos,
+        };
+        ray.validate()?;
+        Ok(McmcSettings {
+            ray,
+            prior: o.prior,
+            steps: o.steps,
+            burn_in: o.burn_in,
+            flips_per_step: o.flips_per_step,
+            decay: o.decay,
+        })
+    }
+}
+
+/// The default `mcmc` σ is the spacing divided by this.
+const MCMC_SIGMA_PER_SPACING: f64 = 10.0;
 
 /// `x` rounded down to 1, 2 or 5 × 10^k.
 fn nice_floor(x: f64) -> f64 {
@@ -142,22 +145,111 @@ fn nice_floor(x: f64) -> f64 {
     }
 }
 
-fn limit(v: Option<usize>, default: usize) -> Option<usize> {
-    match v {
-        None => Some(default),
-        Some(usize::MAX) => None,
-        Some(n) => Some(n),
+/// The default `size` is the cloud's bounding-box diagonal divided by this (then rounded
+/// down to 1, 2 or 5 × 10^k).
+const DIAGONALS_PER_SIZE: f64 = 8.0;
+/// The default `spacing` is `size` divided by this (the thesis's hallway: 1 m squares on a
+/// 0.5 m lattice).
+const SIZES_PER_SPACING: f64 = 2.0;
+/// The default tube `radius` is `size` divided by this.
+const SIZES_PER_RADIUS: f64 = 10.0;
+/// The default `cap` is at least this many noise σ.
+const CAP_NOISE_SIGMAS: f64 = 5.0;
+/// The default `sample_spacing` is at most `size` divided by this …
+const SAMPLES_PER_SIZE: f64 = 16.0;
+/// … and, with tubes, at most their circumference divided by this.
+const SAMPLES_PER_CIRCUMFERENCE: f64 = 12.0;
+/// Points probed for the cloud's median point spacing.
+const SPACING_PROBES: usize = 2000;
+/// Without a measurable point spacing it is taken as the diagonal divided by this.
+const DIAGONALS_PER_POINT_SPACING: f64 = 100.0;
+
+/// `v`, checked to be a positive finite length named `name`.
+fn positive(name: &str, v: f64) -> Result<f64> {
+    check::positive(name, v)?;
+    Ok(v)
+}
+
+/// The lengths of [`Settings`] with their defaults from the cloud (see the module docs
+/// of [`super`]), checked.
+struct Lengths {
+    size: f64,
+    spacing: f64,
+    radius: f64,
+    bend: f64,
+    cap: f64,
+    sample_spacing: f64,
+}
+
+impl Lengths {
+    /// The lengths of `o` for a cloud of bounding-box `diagonal`, median point spacing
+    /// `point_spacing` and noise σ `noise`.
+    fn resolve(o: &FitOptions, diagonal: f64, point_spacing: f64, noise: f64) -> Result<Self> {
+        let size = o
+            .size
+            .unwrap_or_else(|| nice_floor(diagonal / DIAGONALS_PER_SIZE));
+        let size = positive("size", size)?;
+        let default_spacing = match &o.mesh {
+            Some(m) if o.kinds.iter().all(|k| *k == ShapeKind::Mesh) => m.bounding_radius(),
+            _ => size / SIZES_PER_SPACING,
+        };
+        let spacing = positive("spacing", o.spacing.unwrap_or(default_spacing))?;
+        let radius = positive("radius", o.radius.unwrap_or(size / SIZES_PER_RADIUS))?;
+        let bend = positive("bend", o.bend.unwrap_or(spacing))?;
+        let cap = o.cap.unwrap_or(spacing.max(CAP_NOISE_SIGMAS * noise));
+        check::non_negative("cap", cap)?;
+        let tubes = o
+            .kinds
+            .iter()
+            .any(|k| matches!(k, ShapeKind::Cylinder | ShapeKind::Elbow));
+        let mut sample_spacing = size / SAMPLES_PER_SIZE;
+        if tubes {
+            let circumference = std::f64::consts::TAU * radius;
+            sample_spacing = sample_spacing.min(circumference / SAMPLES_PER_CIRCUMFERENCE);
+        }
+        let sample_spacing = o
+            .sample_spacing
+            .unwrap_or(sample_spacing.max(point_spacing));
+        let sample_spacing = positive("sample_spacing", sample_spacing)?;
+        Ok(Lengths {
+            size,
+            spacing,
+            radius,
+            bend,
+            cap,
+            sample_spacing,
+        })
     }
 }
 
-fn positive(name: &str, v: f64) -> Result<f64> {
-    if v.is_finite() && v > 0.0 {
-        Ok(v)
-    } else {
-        Err(Error::invalid(format!(
-            "--{name} must be a positive length, got {v}"
-        )))
+/// The loss options of `o` with `d_cap = cap²`, checked.
+fn chamfer_options(o: &FitOptions, cap: f64) -> Result<ChamferOptions> {
+    let chamfer = ChamferOptions {
+        model: o.model,
+        alpha: match o.model {
+            PointModel::Independent => o.alpha.get(),
+            PointModel::Existence => None,
+        },
+        beta: o.beta.get(),
+        cap: cap * cap,
+        surface_distance: o.model == PointModel::Existence,
+        primitive_weight: o.primitive_weight,
+        point_weight: o.point_weight,
+    };
+    chamfer.validate()?;
+    Ok(chamfer)
+}
+
+/// The bounding-box diagonal of a non-empty cloud whose points do not all coincide.
+fn extent(cloud: &PointCloud) -> Result<f64> {
+    let (lo, hi) = cloud.bounds().ok_or(Error::EmptyCloud)?;
+    let diagonal = (hi - lo).norm();
+    if diagonal.is_nan() || diagonal <= 0.0 {
+        let expected = "positive: the points must not all coincide";
+        let name = "the cloud's extent (bounding-box diagonal)";
+        return Err(Error::out_of_range(name, diagonal, expected));
     }
+    Ok(diagonal)
 }
 
 /// The lattice frame, the frame estimate's support and the grid origin of `o.frame`:
@@ -203,16 +295,9 @@ fn resolve_frame(
 impl Settings {
     /// Resolves every default from the cloud (see the module docs) and validates.
     pub fn resolve(cloud: &PointCloud, index: &PointIndex, o: &FitOptions) -> Result<Settings> {
-        let (lo, hi) = cloud
-            .bounds()
-            .ok_or_else(|| Error::invalid("the cloud is empty"))?;
-        let diagonal = (hi - lo).norm();
-        if diagonal.is_nan() || diagonal <= 0.0 {
-            return Err(Error::invalid(
-                "the cloud has no extent (all points coincide)",
-            ));
-        }
-        let point_spacing = median_spacing(&cloud.points, index, 2000).unwrap_or(diagonal / 100.0);
+        let diagonal = extent(cloud)?;
+        let point_spacing = median_spacing(&cloud.points, index, SPACING_PROBES)
+            .unwrap_or(diagonal / DIAGONALS_PER_POINT_SPACING);
         let noise = noise_level(&local_planes(
             &cloud.points,
             index,
@@ -220,62 +305,37 @@ impl Settings {
             NOISE_MAX_POINTS,
         ))
         .unwrap_or(0.0);
-
-        let kinds = if o.kinds.is_empty() {
-            vec![ShapeKind::Square]
-        } else {
-            o.kinds.clone()
-        };
-        let size = positive("size", o.size.unwrap_or_else(|| nice_floor(diagonal / 8.0)))?;
-        let default_spacing = match &o.mesh {
-            Some(m) if kinds.iter().all(|k| *k == ShapeKind::Mesh) => m.bounding_radius(),
-            _ => size / 2.0,
-        };
-        let spacing = positive("spacing", o.spacing.unwrap_or(default_spacing))?;
-        let radius = positive("radius", o.radius.unwrap_or(size / 10.0))?;
-        let bend = positive("bend", o.bend.unwrap_or(spacing))?;
-        let cap = o.cap.unwrap_or(spacing.max(5.0 * noise));
-        if !(cap.is_finite() && cap >= 0.0) {
-            return Err(Error::invalid(format!(
-                "--cap must be a finite distance ≥ 0, got {cap}"
-            )));
+        if o.kinds.is_empty() {
+            let expected = "at least one primitive type";
+            return Err(Error::out_of_range("kinds", "none", expected));
         }
-        let tubes = kinds
-            .iter()
-            .any(|k| matches!(k, ShapeKind::Cylinder | ShapeKind::Elbow));
-        let mut sample_spacing = size / 16.0;
-        if tubes {
-            sample_spacing = sample_spacing.min(std::f64::consts::TAU * radius / 12.0);
+        let Lengths {
+            size,
+            spacing,
+            radius,
+            bend,
+            cap,
+            sample_spacing,
+        } = Lengths::resolve(o, diagonal, point_spacing, noise)?;
+        if o.kinds.contains(&ShapeKind::Mesh) && o.mesh.is_none() {
+            return Err(Error::Missing {
+                what: "a mesh (the `mesh` option)".into(),
+                needed_by: "the mesh primitive type",
+            });
         }
-        let sample_spacing = positive(
-            "sample-spacing",
-            o.sample_spacing
-                .unwrap_or(sample_spacing.max(point_spacing)),
-        )?;
-        if kinds.contains(&ShapeKind::Mesh) && o.mesh.is_none() {
-            return Err(Error::invalid(
-                "the mesh type needs a mesh (--mesh-model FILE.ply)",
-            ));
-        }
-        let chamfer = ChamferOptions {
-            model: o.model,
-            alpha: match o.model {
-                PointModel::Independent => limit(o.alpha, 10),
-                PointModel::Existence => None,
-            },
-            beta: limit(o.beta, 32),
-            cap: cap * cap,
-            surface_distance: o.model == PointModel::Existence,
-            primitive_weight: o.primitive_weight.unwrap_or(1.0),
-            point_weight: o.point_weight.unwrap_or(1.0),
-        };
-        chamfer.validate()?;
+        let chamfer = chamfer_options(o, cap)?;
         if let Some(r) = &o.refine {
             r.validate()?;
         }
+        let method = match &o.method {
+            MethodOptions::Chamfer => MethodSettings::Chamfer,
+            MethodOptions::Mcmc(m) => {
+                MethodSettings::Mcmc(McmcSettings::resolve(m, diagonal, spacing)?)
+            }
+        };
         let (frame, frame_support, origin) = resolve_frame(cloud, index, o, spacing, size);
         Ok(Settings {
-            kinds,
+            kinds: o.kinds.clone(),
             size,
             radius,
             bend,
@@ -292,11 +352,32 @@ impl Settings {
             chamfer,
             solver: o.solver.clone(),
             seed: o.seed,
-            memory_budget: o.memory_budget.unwrap_or(physical_memory() / 2),
+            memory_budget: o
+                .memory_budget
+                .unwrap_or_else(|| (physical_memory() as f64 * DEFAULT_MEMORY_SHARE) as u64),
             mesh: o.mesh.clone(),
-            method: Method::Chamfer,
-            method_settings: serde_json::Map::new(),
+            method,
         })
+    }
+
+    /// The settings of the coarse-to-fine pass ([`super::fit`]): half the spacing, no
+    /// refinement; everything else as here.
+    pub fn finer(&self) -> Settings {
+        Settings {
+            spacing: self.spacing / 2.0,
+            refine: None,
+            ..self.clone()
+        }
+    }
+
+    /// These settings on another lattice frame (lattice → scene) and grid origin (the
+    /// re-aligned pass of [`super::fit`]).
+    pub fn realigned(&self, frame: UnitQuaternion<f64>, origin: Point3<f64>) -> Settings {
+        Settings {
+            frame,
+            origin,
+            ..self.clone()
+        }
     }
 
     /// The shape of each selected type at the configured sizes.
@@ -370,32 +451,40 @@ impl Settings {
             "weights": [self.chamfer.primitive_weight, self.chamfer.point_weight],
             "parameterization": self.solver.parameterization.name(),
             "max_iterations": self.solver.max_iterations,
-            "search_points": self.solver.search_points,
+            // `--search-points 0` (no limit) has always been written as the largest count.
+            "search_points": self.solver.search_points.get().unwrap_or(usize::MAX),
             "threshold": self.solver.threshold,
             "polish": self.solver.polish,
             "method": self.method.name(),
             "seed": self.seed,
             "mesh_model": self.mesh.as_ref().map(|m| m.source.clone()),
         });
-        if let Value::Object(m) = &mut doc {
-            if self.method != Method::Chamfer {
-                // The chamfer loss and its solver play no part in other methods.
-                for key in [
-                    "model",
-                    "alpha",
-                    "beta",
-                    "cap",
-                    "weights",
-                    "parameterization",
-                    "max_iterations",
-                    "search_points",
-                    "threshold",
-                    "polish",
-                ] {
-                    m.remove(key);
-                }
+        if let (Value::Object(m), MethodSettings::Mcmc(mcmc)) = (&mut doc, &self.method) {
+            // The chamfer loss and its solver play no part in other methods.
+            for key in [
+                "model",
+                "alpha",
+                "beta",
+                "cap",
+                "weights",
+                "parameterization",
+                "max_iterations",
+                "search_points",
+                "threshold",
+                "polish",
+            ] {
+                m.remove(key);
             }
-            m.extend(self.method_settings.clone());
+            let r = &mcmc.ray;
+            m.insert(
+                "ray".into(),
+                json!({ "rate": r.rate, "sigma": r.sigma, "min_cos": r.min_cos }),
+            );
+            m.insert(
+                "mcmc".into(),
+                json!({ "prior": mcmc.prior, "steps": mcmc.steps, "burn_in": mcmc.burn_in,
+                        "flips_per_step": mcmc.flips_per_step, "decay": mcmc.decay }),
+            );
         }
         doc
     }

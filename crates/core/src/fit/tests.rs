@@ -3,7 +3,9 @@
 use nalgebra::Point3;
 
 use super::*;
+use crate::ShapeKind;
 use crate::chamfer::{ChamferOptions, PointModel};
+use crate::error::{Remedy, Unit};
 use crate::progress::Silent;
 
 /// A floor patch 2 m × 2 m at z = 0 and a wall at x = 0, aligned with a 0.5 m lattice.
@@ -23,7 +25,7 @@ fn corner() -> PointCloud {
 fn fits_an_aligned_corner_with_squares() {
     let options = FitOptions {
         size: Some(1.0),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     let result = fit(&corner(), &options, &Silent).unwrap();
     assert_eq!(result.settings.spacing, 0.5);
@@ -53,20 +55,84 @@ fn bad_options_are_errors() {
     let c = corner();
     let bad = FitOptions {
         size: Some(-1.0),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     assert!(fit(&c, &bad, &Silent).is_err());
     let bad = FitOptions {
         cap: Some(f64::NAN),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     assert!(fit(&c, &bad, &Silent).is_err());
-    assert!(fit(&PointCloud::default(), &FitOptions::default(), &Silent).is_err());
+    assert!(fit(&PointCloud::default(), &FitOptions::lattice(), &Silent).is_err());
     let tiny = FitOptions {
         memory_budget: Some(10),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
-    assert!(matches!(fit(&c, &tiny, &Silent), Err(Error::TooLarge(_))));
+    assert!(matches!(
+        fit(&c, &tiny, &Silent),
+        Err(Error::OverLimit {
+            unit: Unit::Bytes,
+            ..
+        })
+    ));
+}
+
+#[test]
+fn faults_are_typed_and_name_the_option_by_its_field() {
+    let c = corner();
+    let negative = |e: Result<FitResult>, option: &str| match e {
+        Err(Error::OutOfRange { name, .. }) => assert_eq!(name, option),
+        other => panic!("{option}: {other:?}"),
+    };
+    for option in ["size", "spacing", "radius", "bend", "sample_spacing"] {
+        let mut o = FitOptions::lattice();
+        match option {
+            "size" => o.size = Some(-1.0),
+            "spacing" => o.spacing = Some(0.0),
+            "radius" => o.radius = Some(f64::NAN),
+            "bend" => o.bend = Some(-2.0),
+            _ => o.sample_spacing = Some(f64::INFINITY),
+        }
+        negative(fit(&c, &o, &Silent), option);
+    }
+    let bad_cap = FitOptions {
+        cap: Some(-1.0),
+        ..FitOptions::lattice()
+    };
+    negative(fit(&c, &bad_cap, &Silent), "cap");
+    let no_types = FitOptions {
+        kinds: Vec::new(),
+        ..FitOptions::lattice()
+    };
+    negative(fit(&c, &no_types, &Silent), "kinds");
+    assert!(matches!(
+        fit(&PointCloud::default(), &FitOptions::lattice(), &Silent),
+        Err(Error::EmptyCloud)
+    ));
+    let mut nan = c.clone();
+    nan.points[7].y = f64::NAN;
+    assert!(matches!(
+        fit(&nan, &FitOptions::lattice(), &Silent),
+        Err(Error::NonFinite { index: 7, .. })
+    ));
+    let mesh_without_mesh = FitOptions {
+        kinds: vec![ShapeKind::Mesh],
+        ..FitOptions::lattice()
+    };
+    assert!(matches!(
+        fit(&c, &mesh_without_mesh, &Silent),
+        Err(Error::Missing { .. })
+    ));
+    // The library names options by their fields, never by a CLI flag.
+    let e = fit(
+        &c,
+        &FitOptions {
+            size: Some(-1.0),
+            ..FitOptions::lattice()
+        },
+        &Silent,
+    );
+    assert!(!e.unwrap_err().to_string().contains("--"));
 }
 
 #[test]
@@ -99,28 +165,39 @@ fn memory_budget_covers_the_peak_and_names_the_settings() {
     );
 
     let c = corner();
-    let fitted = fit(&c, &FitOptions::default(), &Silent).unwrap();
+    let fitted = fit(&c, &FitOptions::lattice(), &Silent).unwrap();
     let need = fitted.stats.estimated_bytes;
     assert!(need >= fitted.stats.coefficient_bytes as u64);
     let just_under = FitOptions {
         memory_budget: Some(need - 1),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
-    let Err(Error::TooLarge(msg)) = fit(&c, &just_under, &Silent) else {
+    let Err(Error::OverLimit {
+        need: got,
+        limit,
+        unit,
+        remedies,
+        ..
+    }) = fit(&c, &just_under, &Silent)
+    else {
         panic!("a budget below the estimate must refuse");
     };
-    for hint in [
-        "--beta",
-        "--spacing",
-        "subsample",
-        "memory_budget",
-        "budget",
-    ] {
-        assert!(msg.contains(hint), "{msg:?} does not mention {hint}");
-    }
+    assert_eq!(
+        (got, limit, unit),
+        (need as f64, (need - 1) as f64, Unit::Bytes)
+    );
+    assert_eq!(
+        remedies,
+        [
+            Remedy::Lower("beta"),
+            Remedy::Raise("spacing"),
+            Remedy::Subsample,
+            Remedy::Raise("memory_budget"),
+        ]
+    );
     let exact = FitOptions {
         memory_budget: Some(need),
-        ..Default::default()
+        ..FitOptions::lattice()
     };
     assert!(fit(&c, &exact, &Silent).is_ok());
 }

@@ -48,13 +48,17 @@ pub use polish::{Moves, polish};
 use crate::chamfer::{Coefficients, Evaluator, LossValue};
 use crate::check::{self, Interval};
 use crate::progress::Progress;
-use crate::{Error, Result};
+use crate::{Error, Limit, Result};
 use lbfgs::lbfgs_on_logits;
 
 /// Default [`SolverOptions::max_iterations`] (a count of iterations): the most L-BFGS
 /// iterations of a solve (of its search phase when it has two), a cap on the time spent
 /// on a slowly converging problem. The other stops are `ftol` and `pgtol`.
 pub const DEFAULT_MAX_ITERATIONS: usize = 200;
+
+/// Default [`SolverOptions::search_points`] (a count of points): clouds of more points
+/// are solved in two phases.
+pub const DEFAULT_SEARCH_POINTS: Limit = Limit::At(50_000);
 
 /// How existence is parameterised during the continuous optimisation.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -114,8 +118,8 @@ pub struct SolverOptions {
     /// pseudo-random subset, point term reweighted: [`Coefficients::row_sample`]), then
     /// L-BFGS continues on all points for at most [`SolverOptions::full_iterations`] and
     /// single flips are polished on all points, so the answer is a local minimum of the
-    /// exact binary loss for single flips. `usize::MAX`: always one phase on all points.
-    pub search_points: usize,
+    /// exact binary loss for single flips. [`Limit::All`]: always one phase on all points.
+    pub search_points: Limit,
     /// L-BFGS iterations on all points after the search phase (see `search_points`).
     pub full_iterations: usize,
 }
@@ -132,7 +136,7 @@ impl Default for SolverOptions {
             threshold: 0.5,
             polish: true,
             max_polish_sweeps: 20,
-            search_points: 50_000,
+            search_points: DEFAULT_SEARCH_POINTS,
             full_iterations: 10,
         }
     }
@@ -182,8 +186,10 @@ pub fn solve(
 ) -> Result<Solution> {
     validate(options)?;
     let n = coeffs.candidates();
-    let search =
-        (coeffs.points() > options.search_points).then(|| coeffs.row_sample(options.search_points));
+    let search = match options.search_points {
+        Limit::At(m) if coeffs.points() > m => Some(coeffs.row_sample(m)),
+        _ => None,
+    };
     progress.start("solve", options.max_iterations as u64);
     let run = match &search {
         None => minimise(coeffs, vec![options.initial; n], options, progress),
@@ -252,6 +258,9 @@ fn minimise(
 /// Checks the ranges of `o` ([`solve`] rejects what L-BFGS cannot start from).
 fn validate(o: &SolverOptions) -> Result<()> {
     check::at_least("memory", o.memory, 1)?;
+    if let Limit::At(m) = o.search_points {
+        check::at_least("search_points", m, 1)?;
+    }
     check::in_interval("threshold", o.threshold, Interval::UNIT)?;
     let starts = match o.parameterization {
         Parameterization::Box => Interval::UNIT,
@@ -317,7 +326,7 @@ mod tests {
             let two = solve(
                 &c,
                 &SolverOptions {
-                    search_points: c.points() / 3,
+                    search_points: Limit::At(c.points() / 3),
                     ..Default::default()
                 },
                 &Silent,

@@ -13,7 +13,7 @@ Quick start::
 
     import numpy as np, primfit
     prim, point, grad = primfit.probabilistic_chamfer(cloud, samples, owner, p, cap=0.25)
-    result = primfit.fit(cloud, types=["square"], size=1.0)
+    result = primfit.fit(cloud, types=["square"], size=1.0)  # as `primfit fit`
     result.primitives[0]["type"], result.existence, result.metrics
 
 The optional PyTorch integration lives in :mod:`primfit.torch` (imported on demand).
@@ -23,7 +23,7 @@ from __future__ import annotations
 
 import json
 import os
-from collections.abc import Sequence
+from collections.abc import Mapping, Sequence
 from typing import Any
 
 import numpy as np
@@ -255,120 +255,98 @@ class FitResult:
         return f"FitResult({len(self.primitives)} primitives: {summary})"
 
 
-def _fit_options(
-    *,
-    types: Sequence[str] | str | None = None,
-    size: float | None = None,
-    radius: float | None = None,
-    bend: float | None = None,
-    spacing: float | None = None,
-    origin: Sequence[float] | None = None,
-    sample_spacing: float | None = None,
-    model: str = "existence",
-    alpha: Limit = None,
-    beta: Limit = None,
-    cap: float | None = None,
-    weights: tuple[float, float] | None = None,
-    parameterization: str = "box",
-    max_iterations: int = 200,
-    polish: bool = True,
-    mesh_model: tuple[ArrayLike, ArrayLike] | None = None,
-    seed: int = 0,
-    memory_budget: int | None = None,
-) -> _primfit.FitOptions:
-    if isinstance(types, str):
-        types = [t.strip() for t in types.split(",") if t.strip()]
-    mesh = None
-    if mesh_model is not None:
-        vertices, faces = mesh_model
+def _fit_options(options: dict[str, Any]) -> _primfit.FitOptions:
+    """The options of :func:`fit` as the extension's ``FitOptions``; a mesh given as
+    arrays is converted here (its keyword list is the extension's, see ``_primfit.pyi``)."""
+    mesh = options.get("mesh_model")
+    if isinstance(mesh, tuple):
+        vertices, faces = mesh
         mesh = (_points("mesh vertices", vertices), _ints("mesh faces", faces, 2))
-    return _primfit.FitOptions(
-        types=None if types is None else list(types),
-        size=size,
-        radius=radius,
-        bend=bend,
-        spacing=spacing,
-        origin=None if origin is None else [float(v) for v in origin],
-        sample_spacing=sample_spacing,
-        model=model,
-        alpha=alpha,
-        beta=beta,
-        cap=cap,
-        weights=None if weights is None else (float(weights[0]), float(weights[1])),
-        parameterization=parameterization,
-        max_iterations=max_iterations,
-        polish=polish,
-        mesh_model=mesh,
-        seed=seed,
-        memory_budget=memory_budget,
-    )
+        options = {**options, "mesh_model": mesh}
+    return _primfit.FitOptions(**options)
 
 
-def fit(
-    cloud: ArrayLike,
-    *,
-    types: Sequence[str] | str | None = None,
-    size: float | None = None,
-    radius: float | None = None,
-    bend: float | None = None,
-    spacing: float | None = None,
-    origin: Sequence[float] | None = None,
-    sample_spacing: float | None = None,
-    model: str = "existence",
-    alpha: Limit = None,
-    beta: Limit = None,
-    cap: float | None = None,
-    weights: tuple[float, float] | None = None,
-    parameterization: str = "box",
-    max_iterations: int = 200,
-    polish: bool = True,
-    mesh_model: tuple[ArrayLike, ArrayLike] | None = None,
-    seed: int = 0,
-    memory_budget: int | None = None,
-) -> FitResult:
-    """Fits primitives to ``cloud`` (J, 3), as ``primfit fit`` does.
+def _cloud(cloud: ArrayLike | Mapping[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
+    """The points of ``cloud`` and, for a dict as :func:`read_ply` returns, the per-point
+    ``normals``, ``labels`` and ``sensors`` it has."""
+    if not isinstance(cloud, Mapping):
+        return _points("cloud", cloud), {}
+    extra: dict[str, np.ndarray] = {}
+    for name in ("normals", "sensors"):
+        if cloud.get(name) is not None:
+            extra[name] = _points(name, cloud[name])
+    if cloud.get("labels") is not None:
+        extra["labels"] = np.ascontiguousarray(_ints("labels", cloud["labels"]), dtype=np.int32)
+    return _points("cloud", cloud["points"]), extra
 
-    Every option mirrors the CLI flag of the same name; ``None`` derives the value from
-    the cloud (the result's ``settings`` lists what was used).
+
+def fit(cloud: ArrayLike | Mapping[str, Any], **options: Any) -> FitResult:
+    """Fits primitives to ``cloud``, as ``primfit fit`` does: with no options,
+    ``fit(read_ply(path))`` gives the primitives of ``primfit fit path``.
+
+    ``cloud`` is a (J, 3) array, or a dict as :func:`read_ply` returns (its ``normals``,
+    ``labels`` and ``sensors`` are used by ``method="mcmc"``). Every option is a flag of
+    ``primfit fit`` under the same name (``--no-refine`` is ``refine=False``,
+    ``--no-polish`` is ``polish=False``); ``None`` or leaving it out takes the library's
+    default or derives the value from the cloud (the result's ``settings`` lists what was
+    used). The keywords and their types are those of ``primfit._primfit.FitOptions``.
 
     Parameters
     ----------
     types : list of str or comma-separated str
         Primitive types from square, disk, cylinder, elbow, sphere, mesh (default square).
     size, radius, bend, spacing : float
-        Candidate main extent, tube radius, elbow bend radius, lattice step (scene units).
+        Candidate main extent (default: bounding-box diagonal / 8, rounded down to 1, 2 or
+        5 × 10^k), tube radius (size / 10), elbow bend radius (spacing), lattice step
+        (size / 2), in scene units.
     origin : (3,) floats
-        A lattice point (default the origin).
+        A lattice point (default: with ``frame="axis"`` the scene origin, otherwise grid
+        planes on the scan's main planes).
+    frame : "auto", "axis", dict or str
+        Lattice frame: ``"auto"`` (default) estimates the scan's dominant axes, ``"axis"``
+        uses the scene axes; a dict ``{"rotation": [w, x, y, z], "origin": [x, y, z]}``
+        (origin optional) or a ``result.json`` document (or the path of a JSON file) gives
+        it.
+    refine : bool
+        Continuous refinement of the chosen primitives (default True).
+    refine_rounds : int
+        Refinement rounds (default 4).
     sample_spacing : float
-        Spacing of candidate surface samples.
+        Spacing of candidate surface samples (default min(size / 16, 2π·radius / 12), at
+        least the cloud's median point spacing).
     model : {"existence", "independent"}
-        Point-term model.
+        Point-term model (default existence).
     alpha, beta : int or "inf"
-        Samples per (point, candidate) and candidates per point (defaults 10 and 16).
+        Samples per (point, candidate), independent model only, and candidates per point
+        (defaults 10 and 32).
     cap : float
-        The distance (not squared) whose square is ``d_cap`` (default: the spacing).
+        The distance (not squared) whose square is ``d_cap`` (default max(spacing, 5σ)
+        with σ the cloud's noise level).
     weights : (float, float)
         Weights of the primitive and point terms (default 1, 1).
+    method : {"chamfer", "mcmc"}
+        Inference method (default chamfer); mcmc needs the cloud's ``sensors``.
+    steps, burn_in, noise_rate, sigma, prior
+        Options of ``method="mcmc"`` (defaults max(1000, 20 × candidates), steps / 5,
+        1 / bounding-box diagonal, spacing / 10, 0.1).
     parameterization : {"box", "logit"}
-        Existence parameterisation of L-BFGS.
+        Existence parameterisation of L-BFGS (default box).
     max_iterations : int
-        L-BFGS iterations at most.
+        L-BFGS iterations at most (default 200).
+    search_points : int or "inf"
+        Clouds of more points are solved in two phases (default 50000; 0 or "inf": one).
     polish : bool
-        Run the discrete polish after thresholding.
-    mesh_model : (vertices (V, 3), faces (F, 3) int)
-        The triangle mesh of the ``mesh`` type (e.g. from :func:`read_mesh`).
+        Run the discrete polish after thresholding (default True).
     seed : int
-        Seed for every random choice.
+        Seed for every random choice (default 0).
+    mesh_model : path or (vertices (V, 3), faces (F, 3) int)
+        The triangle mesh of the ``mesh`` type (a PLY file, or e.g. :func:`read_mesh`).
     memory_budget : int
-        Upper bound on coefficient memory in bytes (default half the machine's memory).
+        Upper bound on the fit's estimated peak memory in bytes (default half the
+        machine's memory).
     """
-    options = _fit_options(
-        types=types, size=size, radius=radius, bend=bend, spacing=spacing, origin=origin,
-        sample_spacing=sample_spacing, model=model, alpha=alpha, beta=beta, cap=cap, weights=weights,
-        parameterization=parameterization, max_iterations=max_iterations, polish=polish,
-        mesh_model=mesh_model, seed=seed, memory_budget=memory_budget,
-    )
-    return FitResult(*_primfit.fit(_points("cloud", cloud), options))
+    points, extra = _cloud(cloud)
+    return FitResult(*_primfit.fit(points, _fit_options(options), **extra))
 
 
 class Candidates:
@@ -414,7 +392,7 @@ def candidates(cloud: ArrayLike, **options: Any) -> Candidates:
 
     :meth:`Candidates.problem` gives the fit's loss, e.g. to run another optimiser on it.
     """
-    return Candidates(_points("cloud", cloud), _fit_options(**options))
+    return Candidates(_points("cloud", cloud), _fit_options(options))
 
 
 def read_ply(path: str | os.PathLike[str]) -> dict[str, np.ndarray]:

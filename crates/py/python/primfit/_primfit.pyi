@@ -5,9 +5,11 @@ Arrays must already be float64 (int64 for indices); the ``primfit`` facade conve
 
 import os
 
+from collections.abc import Mapping, Sequence
+from typing import Any, final
+
 import numpy as np
 import numpy.typing as npt
-from typing import final
 
 __all__ = [
     "ChamferProblem",
@@ -77,30 +79,49 @@ def chamfer_problems(
 
 @final
 class FitOptions:
+    """Every option of ``primfit fit``, under its name; ``None`` = the library's default."""
+
     def __new__(
         cls,
         *,
-        types: list[str] | None = None,
+        types: str | Sequence[str] | None = None,
         size: float | None = None,
         radius: float | None = None,
         bend: float | None = None,
         spacing: float | None = None,
-        origin: list[float] | None = None,
+        origin: Sequence[float] | npt.ArrayLike | None = None,
+        frame: str | Mapping[str, Any] | None = None,
+        refine: bool | None = None,
+        refine_rounds: int | None = None,
         sample_spacing: float | None = None,
-        model: str = "existence",
+        model: str | None = None,
         alpha: _Limit = None,
         beta: _Limit = None,
         cap: float | None = None,
-        weights: tuple[float, float] | None = None,
-        parameterization: str = "box",
-        max_iterations: int = 200,
-        polish: bool = True,
-        mesh_model: tuple[_F64, _I64] | None = None,
-        seed: int = 0,
+        weights: Sequence[float] | npt.ArrayLike | None = None,
+        method: str | None = None,
+        steps: int | None = None,
+        burn_in: int | None = None,
+        noise_rate: float | None = None,
+        sigma: float | None = None,
+        prior: float | None = None,
+        parameterization: str | None = None,
+        max_iterations: int | None = None,
+        search_points: _Limit = None,
+        polish: bool | None = None,
+        seed: int | None = None,
+        mesh_model: str | os.PathLike[str] | tuple[_F64, _I64] | None = None,
         memory_budget: int | None = None,
     ) -> FitOptions: ...
 
-def fit(cloud: _F64, options: FitOptions) -> tuple[str, _F64]: ...
+def fit(
+    cloud: _F64,
+    options: FitOptions,
+    *,
+    normals: _F64 | None = None,
+    labels: npt.NDArray[np.int32] | None = None,
+    sensors: _F64 | None = None,
+) -> tuple[str, _F64]: ...
 def candidates(cloud: _F64, options: FitOptions) -> tuple[str, _F64, _I64, str]: ...
 def fit_problem(cloud: _F64, options: FitOptions) -> ChamferProblem: ...
 
