@@ -24,6 +24,7 @@ mod bvh;
 mod elbow;
 mod mesh;
 mod numeric;
+mod occupancy;
 mod outline;
 mod planar;
 mod plane;
@@ -39,7 +40,7 @@ mod trimesh;
 mod tube;
 
 pub use mesh::MeshShape;
-pub use outline::{MAX_OUTLINE_CELLS, MIN_COMPONENT_CELLS, MIN_HOLE_CELLS};
+pub use occupancy::{MAX_OUTLINE_CELLS, MIN_COMPONENT_CELLS, MIN_HOLE_CELLS};
 pub use plane::{MAX_PLANE_VERTICES, PlaneShape};
 pub use plane_fit::{fit_plane, fit_plane_primitive, plane_frame};
 pub use shapes::*;

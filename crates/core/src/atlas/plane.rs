@@ -20,6 +20,10 @@ use super::planar::plane_ray;
 use crate::error::Unit;
 use crate::{Error, Result};
 
+/// A polygon as rings of local 2-D points: `(outline, holes)`, each ring open (first
+/// vertex not repeated).
+pub(super) type Rings = (Vec<Point2<f64>>, Vec<Vec<Point2<f64>>>);
+
 /// Most vertices a plane may have over all its rings: the validity check of a polygon
 /// is quadratic in them (16 Ki vertices, about 10⁸ segment tests).
 pub const MAX_PLANE_VERTICES: usize = 1 << 14;
@@ -240,9 +244,13 @@ impl PlaneShape {
         for j in 0..ny {
             let y = y0 + j as f64 * spacing;
             crossings.clear();
-            crossings.extend(self.inner.edges.iter().filter_map(|[a, b]| {
-                ((a.y > y) != (b.y > y)).then(|| a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y))
-            }));
+            crossings.extend(
+                self.inner
+                    .edges
+                    .iter()
+                    .filter(|[a, b]| (a.y > y) != (b.y > y))
+                    .map(|[a, b]| a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y)),
+            );
             crossings.sort_by(f64::total_cmp);
             for span in crossings.chunks_exact(2) {
                 // Columns i with x0 + i·spacing in [span[0], span[1]).
@@ -329,10 +337,7 @@ fn ring_from_json(v: Option<&Value>, field: &str) -> Result<Vec<Point2<f64>>> {
 }
 
 /// The cheap checks of [`PlaneShape::new`]; returns the rings without a closing vertex.
-fn check_rings(
-    outline: Vec<Point2<f64>>,
-    holes: Vec<Vec<Point2<f64>>>,
-) -> Result<(Vec<Point2<f64>>, Vec<Vec<Point2<f64>>>)> {
+fn check_rings(outline: Vec<Point2<f64>>, holes: Vec<Vec<Point2<f64>>>) -> Result<Rings> {
     let outline = open(outline);
     let holes: Vec<_> = holes.into_iter().map(open).collect();
     let total = outline.len() + holes.iter().map(Vec::len).sum::<usize>();

@@ -21,22 +21,21 @@ impl PlaneShape {
     }
 
     /// One plane per connected part of `points` (local 2-D coordinates, local units),
-    /// largest area first.
-    ///
-    /// The points are binned into an occupancy grid of cell `cell` (cell centres on the
-    /// points' bounding box), gaps up to two cells wide are closed, parts of fewer than
-    /// [`super::outline::MIN_COMPONENT_CELLS`] cells dropped and holes of fewer than
-    /// [`super::outline::MIN_HOLE_CELLS`] cells filled; the boundary is traced by
-    /// marching squares at iso-level ½ (half a cell beyond the outermost occupied cell
-    /// centres), moved inward by half of (cell − point spacing) so that it ends where the
-    /// sampled surface ends, and simplified with a tolerance of half a cell. A grid of
-    /// more than [`super::outline::MAX_OUTLINE_CELLS`] cells is coarsened until it fits
-    /// (the outline is then correspondingly coarser). Linear in points and cells.
+    /// largest area first, traced on an occupancy grid of cell `cell` (same units; pass
+    /// a few point spacings; the steps are documented in `atlas/outline.rs`): gaps up to two cells wide
+    /// closed, parts of fewer than [`crate::atlas::MIN_COMPONENT_CELLS`] cells dropped,
+    /// holes of fewer than [`crate::atlas::MIN_HOLE_CELLS`] cells filled, the boundary
+    /// simplified to within about half a cell and ending half a point spacing beyond the
+    /// outermost points. A grid of more than [`crate::atlas::MAX_OUTLINE_CELLS`] cells is
+    /// coarsened until it fits (the outline is then correspondingly coarser, and points
+    /// sparse at the coarser cell may leave no part); an outline that simplifies to more
+    /// than 2048 vertices (points much sparser than the cell) is traced again at twice
+    /// the cell, up to three times. Linear in points and cells.
     ///
     /// Errors: no points ([`Error::EmptyCloud`]), a non-finite point
     /// ([`Error::NonFinite`]), `cell` not positive and finite ([`Error::OutOfRange`]),
-    /// no part of at least the minimum size, or an outline with more than
-    /// [`super::MAX_PLANE_VERTICES`] vertices.
+    /// no part of at least the minimum size ([`Error::InvalidArgument`]), or an outline
+    /// still too complex at the coarsest cell tried ([`Error::OverLimit`]).
     pub fn parts_from_points(points: &[Point2<f64>], cell: f64) -> Result<Vec<PlaneShape>> {
         let (polygons, _cell) = super::outline::outlines(points, cell)?;
         polygons

@@ -178,6 +178,20 @@ fn outline_of_a_rectangle_turned_37_degrees_in_its_own_coordinates() {
 }
 
 #[test]
+fn outline_of_a_disk_follows_the_rim_with_few_vertices() {
+    let points = scan(0.9, 0.0, 11, |x, y| x.hypot(y) <= 0.8);
+    let shape = PlaneShape::from_points(&points, CELL).unwrap();
+    check_outline("disk", &shape, &points, std::f64::consts::PI * 0.64, 40, 0);
+    // Every vertex near the rim.
+    let worst = shape
+        .outline()
+        .iter()
+        .map(|v| (v.coords.norm() - 0.8).abs())
+        .fold(0.0, f64::max);
+    assert!(worst < CELL / 2.0, "vertex {worst} off the rim");
+}
+
+#[test]
 fn small_components_and_holes_are_cleaned_up() {
     let mut points = scan(1.1, 0.0, 5, |x, y| {
         rectangle(x, y) && (x - 0.5).hypot(y) > 0.012
@@ -198,6 +212,25 @@ fn small_components_and_holes_are_cleaned_up() {
         "{}",
         parts[0].area()
     );
+}
+
+#[test]
+fn a_cell_finer_than_the_points_is_coarsened_until_the_outline_is_simple() {
+    // Uniform random points, mean spacing 0.01, traced at a cell of 0.006: the occupancy
+    // is speckled with holes until the cell is doubled.
+    let mut rng = ChaCha8Rng::seed_from_u64(13);
+    let points: Vec<Point2<f64>> = (0..40_000)
+        .map(|_| Point2::new(rng.random_range(-1.0..1.0), rng.random_range(-1.0..1.0)))
+        .collect();
+    let shape = PlaneShape::from_points(&points, 0.006).unwrap();
+    eprintln!(
+        "speckled: area {:.4}, {} vertices, {} holes",
+        shape.area(),
+        shape.vertex_count(),
+        shape.holes().len()
+    );
+    assert!(shape.vertex_count() <= super::outline::MAX_CHECKED_VERTICES);
+    assert!((shape.area() / 4.0 - 1.0).abs() < 0.05, "{}", shape.area());
 }
 
 #[test]

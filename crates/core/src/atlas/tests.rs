@@ -968,7 +968,11 @@ fn elbow_quarter_is_where_the_conventions_say() {
 
 #[test]
 fn hostile_spacings_never_explode() {
-    for shape in [Shape::Square { side: 1.0 }, Shape::Sphere { diameter: 1.0 }] {
+    for shape in [
+        Shape::Square { side: 1.0 },
+        Shape::Sphere { diameter: 1.0 },
+        l_plane(),
+    ] {
         for spacing in [0.0, -1.0, f64::NAN, 1e-12] {
             let n = shape.sample_surface(spacing).len();
             assert!(
