@@ -3,7 +3,10 @@
 //! **Rule (description length).** Two segments of the same type merge when **one**
 //! primitive explains their union within the noise: the union's refitted model leaves
 //! each part's points with an RMS of at most `t σ_part` (`t` the tolerance, `σ_part`
-//! the part's noise). One primitive then describes the same points as two at the same
+//! the part's noise) and at most [`MAX_RMS_GROWTH`] times what the part's own model
+//! leaves (or its σ, if larger) — beyond that the union's model is a compromise between
+//! two surfaces, not one surface seen twice (the outer and inner wall of a mug, 3 mm
+//! apart, are both within `t σ` of a cylinder between them). One primitive then describes the same points as two at the same
 //! residual cost, so the shorter description wins (an MDL argument: equal data cost,
 //! one model's parameters fewer). Adjacency is **not** required: a wall split in two by
 //! an occluder in front of it is one plane; its extent (the two point sets) is left to
@@ -30,6 +33,16 @@ const RADIUS_RATIO_GAP: f64 = 0.2;
 /// Cylinders merge only if each one's axis passes within this fraction of the larger
 /// radius of the other's axis point.
 const AXIS_OFFSET_GAP: f64 = 0.2;
+
+/// A part's RMS about the union's model may exceed its own model's RMS (or its σ, if
+/// larger) by at most this factor (dimensionless).
+pub const MAX_RMS_GROWTH: f64 = 1.5;
+
+/// Whether a part whose points lie at RMS `about_union` from the union's model is still
+/// explained by it (module docs).
+fn still_fits(part: &Part, about_union: f64, tolerance: f64) -> bool {
+    about_union <= tolerance * part.sigma && about_union <= MAX_RMS_GROWTH * part.rms.max(part.sigma)
+}
 
 /// A segment under construction: its points (sample indices), model, noise and moments.
 #[derive(Debug, Clone)]
@@ -87,7 +100,7 @@ fn try_merge(a: &Part, b: &Part, points: &[Point3<f64>], cos_angle: f64, toleran
             let mut union = a.moments;
             union += &b.moments;
             let fit = union.plane()?;
-            let fits = |p: &Part| p.moments.rms_about(&fit.point, &fit.normal) <= tolerance * p.sigma;
+            let fits = |p: &Part| still_fits(p, p.moments.rms_about(&fit.point, &fit.normal), tolerance);
             if !(fits(a) && fits(b)) {
                 return None;
             }
@@ -123,7 +136,7 @@ fn try_merge(a: &Part, b: &Part, points: &[Point3<f64>], cos_angle: f64, toleran
                 let ss: f64 = p.ids.iter().map(|&i| model.distance(&points[i]).powi(2)).sum();
                 (ss / p.ids.len().max(1) as f64).sqrt()
             };
-            if part_rms(a) > tolerance * a.sigma || part_rms(b) > tolerance * b.sigma {
+            if !(still_fits(a, part_rms(a), tolerance) && still_fits(b, part_rms(b), tolerance)) {
                 return None;
             }
             let mut union = a.moments;
@@ -207,5 +220,37 @@ mod tests {
         let Some(SurfaceModel::Plane { normal, .. }) = big.model else { panic!() };
         assert!(normal.dot(&Vector3::z()).abs() > 1.0 - 1e-9);
         assert_eq!(union_ids(&[1, 4, 9], &[0, 5]), [0, 1, 4, 5, 9]);
+    }
+
+    fn cylinder_part(points: &mut Vec<Point3<f64>>, r: f64, phase: f64, sigma: f64) -> Part {
+        let start = points.len();
+        for i in 0..40 {
+            for j in 0..30 {
+                let phi = phase + i as f64 * 0.08;
+                let s = if (i + j) % 2 == 0 { sigma } else { -sigma };
+                points.push(Point3::new((r + s) * phi.cos(), (r + s) * phi.sin(), j as f64 * 0.003));
+            }
+        }
+        let ids: Vec<usize> = (start..points.len()).collect();
+        let model = SurfaceModel::Cylinder {
+            point: Point3::new(0.0, 0.0, 0.045),
+            axis: Vector3::z(),
+            radius: r,
+            length: 0.09,
+        };
+        Part { moments: Moments::of(points, &ids), ids, model: Some(model), rms: sigma, sigma }
+    }
+
+    #[test]
+    fn two_arcs_of_one_cylinder_merge_and_two_walls_do_not() {
+        // One cylinder seen in two arcs: one part. The outer and inner wall of a mug
+        // (r = 40 and 37 mm, σ = 0.7 mm): within t σ = 1.75 mm of a cylinder between
+        // them, but each much worse explained by it than by its own.
+        let mut pts = Vec::new();
+        let arcs = vec![cylinder_part(&mut pts, 0.04, 0.0, 0.0006), cylinder_part(&mut pts, 0.04, 3.3, 0.0006)];
+        assert_eq!(merge_parts(arcs, &pts, 5f64.to_radians().cos(), 2.5).len(), 1);
+        let mut pts = Vec::new();
+        let walls = vec![cylinder_part(&mut pts, 0.04, 0.0, 0.0007), cylinder_part(&mut pts, 0.037, 0.2, 0.0007)];
+        assert_eq!(merge_parts(walls, &pts, 5f64.to_radians().cos(), 2.5).len(), 2);
     }
 }

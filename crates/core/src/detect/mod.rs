@@ -101,7 +101,7 @@ pub const MIN_ANGLE_DEG: f64 = 5.0;
 pub const MAX_ANGLE_DEG: f64 = 15.0;
 
 /// A sample propagates growth only if its residual is at most this many σ.
-pub const PROPAGATE_SIGMAS: f64 = 2.0;
+pub const PROPAGATE_SIGMAS: f64 = 3.0;
 
 /// Default smallest segment, in samples: a region must hold at least this many
 /// neighbourhoods' worth of points (× `k`) to be a surface rather than a fragment.
@@ -318,12 +318,14 @@ impl Detection {
 }
 
 /// The coarse-scale noise map: neighbourhoods of `k` points of a voxel grid of
-/// [`noise::COARSE_FACTOR`] × `pitch` over `samples`.
+/// [`noise::COARSE_FACTOR`] × `pitch` over `samples`, their residuals taken off a
+/// height quadric so that curvature at the coarse scale does not count as noise.
 fn coarse_noise(samples: &[Point3<f64>], pitch: f64, k: usize, spacing: f64) -> NoiseMap {
     let ids = voxel_grid(samples, noise::COARSE_FACTOR * pitch);
     let coarse: Vec<Point3<f64>> = ids.iter().map(|&i| samples[i]).collect();
     let index = PointIndex::new(&coarse);
-    let nb = Neighbourhoods::new(&coarse, &index, k);
+    let mut nb = Neighbourhoods::new(&coarse, &index, k);
+    nb.residual = noise::quadric_residuals(&coarse, &nb);
     NoiseMap::new(&coarse, &nb, spacing, median_radius(&nb))
 }
 
