@@ -30,7 +30,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let path = path.ok_or("usage: detect_scan SCAN.ply [--threads N]")?;
     if let Some(n) = threads {
-        rayon::ThreadPoolBuilder::new().num_threads(n).build_global()?;
+        rayon::ThreadPoolBuilder::new()
+            .num_threads(n)
+            .build_global()?;
     }
     let cloud = read_cloud(&path)?;
     let start = Instant::now();
@@ -39,8 +41,19 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let detection = detect(&cloud.points, &index, &DetectOptions::default())?;
     let t_all = start.elapsed();
     let n = cloud.points.len();
-    let count = |kind: &str| detection.segments.iter().filter(|s| s.model.name() == kind).count();
-    println!("{}: {n} points, {} samples (voxel {:?})", path.display(), detection.samples, detection.voxel);
+    let count = |kind: &str| {
+        detection
+            .segments
+            .iter()
+            .filter(|s| s.model.name() == kind)
+            .count()
+    };
+    println!(
+        "{}: {n} points, {} samples (voxel {:?})",
+        path.display(),
+        detection.samples,
+        detection.voxel
+    );
     println!(
         "noise σ = {:.5} (models judged at {:.5}), spacing = {:.5}, growing angle = {:.2}°",
         detection.noise,
@@ -78,8 +91,15 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                 point.z
             ),
             SurfaceModel::Plane { .. } => {}
-            SurfaceModel::Cylinder { point, axis, radius, length } => {
-                let tilt = reference.map_or(f64::NAN, |n| axis.dot(&n).abs().min(1.0).acos().to_degrees());
+            SurfaceModel::Cylinder {
+                point,
+                axis,
+                radius,
+                length,
+            } => {
+                let tilt = reference.map_or(f64::NAN, |n| {
+                    axis.dot(&n).abs().min(1.0).acos().to_degrees()
+                });
                 println!(
                     "  cylinder {:>7} pts  rms {:.4}  radius {radius:.4}  length {length:.3}  axis∠table {tilt:.2}°  at ({:+.3}, {:+.3}, {:+.3})",
                     s.points.len(),

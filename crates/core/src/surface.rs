@@ -163,9 +163,7 @@ pub fn noise_floor(spacing: f64) -> f64 {
 /// `spacing` (median nearest-neighbour distance, [`crate::spatial::median_spacing`]).
 /// Never 0 for a positive spacing; the floor alone when `planes` is empty.
 pub fn noise_sigma(planes: &[LocalPlane], spacing: f64) -> f64 {
-    noise_level(planes)
-        .unwrap_or(0.0)
-        .max(noise_floor(spacing))
+    noise_level(planes).unwrap_or(0.0).max(noise_floor(spacing))
 }
 
 #[cfg(test)]
@@ -222,7 +220,10 @@ mod tests {
         let spacing = crate::spatial::median_spacing(&pts, &idx, 1000).unwrap();
         assert!((spacing - 1.0 / 30.0).abs() < 1e-9);
         let sigma = noise_sigma(&planes, spacing);
-        assert!((sigma - spacing / 12f64.sqrt()).abs() < 1e-12, "σ = {sigma}");
+        assert!(
+            (sigma - spacing / 12f64.sqrt()).abs() < 1e-12,
+            "σ = {sigma}"
+        );
         // Rounding to a step s spreads points uniformly over ±s/2: sd s/√12.
         let s = 0.01;
         let n = 100_000;

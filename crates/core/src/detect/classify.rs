@@ -16,10 +16,10 @@
 
 use nalgebra::{Point3, Vector3};
 
+use super::SurfaceModel;
 use super::cylinder::fit_cylinder;
 use super::plane::Moments;
 use super::sphere::fit_sphere;
-use super::SurfaceModel;
 
 /// A curved model must have at most this fraction of the plane's RMS (dimensionless):
 /// halving the residual is far beyond what the 2–3 extra parameters of a cylinder or
@@ -85,18 +85,17 @@ pub fn classify(
             rms: c.rms,
         });
     }
-    if spheres {
-        if let Some(s) = fit_sphere(&pts).filter(|s| accept(s.rms, s.radius)) {
-            if best.is_none_or(|b| s.rms < b.rms) {
-                best = Some(Classified {
-                    model: Some(SurfaceModel::Sphere {
-                        centre: s.centre,
-                        radius: s.radius,
-                    }),
-                    rms: s.rms,
-                });
-            }
-        }
+    if spheres
+        && let Some(s) = fit_sphere(&pts).filter(|s| accept(s.rms, s.radius))
+        && best.is_none_or(|b| s.rms < b.rms)
+    {
+        best = Some(Classified {
+            model: Some(SurfaceModel::Sphere {
+                centre: s.centre,
+                radius: s.radius,
+            }),
+            rms: s.rms,
+        });
     }
     best.unwrap_or(Classified {
         model: None,

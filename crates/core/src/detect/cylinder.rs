@@ -90,12 +90,15 @@ pub fn kasa_circle(xy: &[(f64, f64)]) -> Option<((f64, f64), f64)> {
         .fold((0.0, 0.0), |(a, b), (x, y)| (a + x / n, b + y / n));
     let mut ata = nalgebra::Matrix3::<f64>::zeros();
     let mut atb = Vector3::zeros();
-    let scatter = xy.iter().fold(nalgebra::Matrix2::<f64>::zeros(), |m, &(x, y)| {
-        let d = nalgebra::Vector2::new(x - mx, y - my);
-        m + d * d.transpose()
-    });
+    let scatter = xy
+        .iter()
+        .fold(nalgebra::Matrix2::<f64>::zeros(), |m, &(x, y)| {
+            let d = nalgebra::Vector2::new(x - mx, y - my);
+            m + d * d.transpose()
+        });
     let spread = scatter.symmetric_eigenvalues();
-    if !(spread.min() > COLLINEAR * spread.max()) {
+    let spans_a_plane = spread.min() > COLLINEAR * spread.max();
+    if !spans_a_plane {
         return None;
     }
     for &(x, y) in xy {
@@ -117,7 +120,8 @@ pub fn fit_cylinder(points: &[Point3<f64>], normals: &[Vector3<f64>]) -> Option<
         return None;
     }
     let axis = least_normal_direction(normals)?;
-    let centroid = Point3::from(points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64);
+    let centroid =
+        Point3::from(points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64);
     let (u, v) = perpendicular_basis(&axis);
     let xy: Vec<(f64, f64)> = points
         .iter()
@@ -247,7 +251,9 @@ impl Axis {
 
 /// Levenberg–Marquardt on the geometric residuals from `start`.
 fn refine(points: &[Point3<f64>], start: Axis) -> Axis {
-    let anchor = Point3::from(points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len().max(1) as f64);
+    let anchor = Point3::from(
+        points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len().max(1) as f64,
+    );
     let mut cur = start;
     let mut cost = cur.cost(points);
     let mut lambda = INITIAL_DAMPING;
@@ -286,8 +292,8 @@ fn refine(points: &[Point3<f64>], start: Axis) -> Axis {
 mod tests {
     use super::*;
     use rand::{RngExt, SeedableRng};
-    use rand_distr::StandardNormal;
     use rand_chacha::ChaCha8Rng;
+    use rand_distr::StandardNormal;
 
     #[test]
     fn kasa_recovers_a_circle() {
@@ -322,7 +328,11 @@ mod tests {
         }
         let fit = fit_cylinder(&pts, &normals).unwrap();
         assert!((fit.radius - r).abs() < 0.03 * r, "r = {}", fit.radius);
-        assert!(fit.axis.dot(&axis).abs() > 2f64.to_radians().cos(), "{}", fit.axis);
+        assert!(
+            fit.axis.dot(&axis).abs() > 2f64.to_radians().cos(),
+            "{}",
+            fit.axis
+        );
         assert!((fit.rms - sigma).abs() < 0.2 * sigma, "rms = {}", fit.rms);
         assert!((fit.length - 0.12).abs() < 0.005);
         let d = fit.point - centre;

@@ -94,13 +94,22 @@ mod tests {
         };
         let regions = grow_regions(&nb, &params);
         let big: Vec<&Vec<usize>> = regions.iter().filter(|r| r.len() > 100).collect();
-        assert_eq!(big.len(), 2, "{:?}", regions.iter().map(Vec::len).collect::<Vec<_>>());
+        assert_eq!(
+            big.len(),
+            2,
+            "{:?}",
+            regions.iter().map(Vec::len).collect::<Vec<_>>()
+        );
         for r in big {
             let n = nb.normals[r[r.len() / 2]];
             let flat = n.dot(&Vector3::z()).abs() > 0.99;
             for &i in r {
                 // Every member lies on its face (crease points may join either).
-                let on = if flat { pts[i].z.abs() < 1e-9 } else { pts[i].x.abs() < 1e-9 };
+                let on = if flat {
+                    pts[i].z.abs() < 1e-9
+                } else {
+                    pts[i].x.abs() < 1e-9
+                };
                 assert!(on || pts[i].x.abs() + pts[i].z.abs() < 0.05);
             }
         }

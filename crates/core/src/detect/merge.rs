@@ -23,9 +23,9 @@
 
 use nalgebra::Point3;
 
+use super::SurfaceModel;
 use super::cylinder::{CylinderFit, refit_cylinder};
 use super::plane::Moments;
-use super::SurfaceModel;
 
 /// Cylinders merge only if their radii differ by at most this fraction of the larger.
 const RADIUS_RATIO_GAP: f64 = 0.2;
@@ -41,7 +41,8 @@ pub const MAX_RMS_GROWTH: f64 = 1.5;
 /// Whether a part whose points lie at RMS `about_union` from the union's model is still
 /// explained by it (module docs).
 fn still_fits(part: &Part, about_union: f64, tolerance: f64) -> bool {
-    about_union <= tolerance * part.sigma && about_union <= MAX_RMS_GROWTH * part.rms.max(part.sigma)
+    about_union <= tolerance * part.sigma
+        && about_union <= MAX_RMS_GROWTH * part.rms.max(part.sigma)
 }
 
 /// A segment under construction: its points (sample indices), model, noise and moments.
@@ -67,14 +68,20 @@ pub fn merge_parts(
     cos_angle: f64,
     tolerance: f64,
 ) -> Vec<Part> {
-    parts.sort_by(|a, b| b.ids.len().cmp(&a.ids.len()).then(a.ids.first().cmp(&b.ids.first())));
+    parts.sort_by(|a, b| {
+        b.ids
+            .len()
+            .cmp(&a.ids.len())
+            .then(a.ids.first().cmp(&b.ids.first()))
+    });
     loop {
         let mut merged_any = false;
         let mut i = 0;
         while i < parts.len() {
             let mut j = i + 1;
             while j < parts.len() {
-                if let Some(joined) = try_merge(&parts[i], &parts[j], points, cos_angle, tolerance) {
+                if let Some(joined) = try_merge(&parts[i], &parts[j], points, cos_angle, tolerance)
+                {
                     parts[i] = joined;
                     parts.remove(j);
                     merged_any = true;
@@ -91,60 +98,111 @@ pub fn merge_parts(
 }
 
 /// The union of `a` and `b` if one model explains it (module docs), else `None`.
-fn try_merge(a: &Part, b: &Part, points: &[Point3<f64>], cos_angle: f64, tolerance: f64) -> Option<Part> {
+fn try_merge(
+    a: &Part,
+    b: &Part,
+    points: &[Point3<f64>],
+    cos_angle: f64,
+    tolerance: f64,
+) -> Option<Part> {
     match (a.model?, b.model?) {
         (SurfaceModel::Plane { normal: na, .. }, SurfaceModel::Plane { normal: nb, .. }) => {
             if na.dot(&nb).abs() < cos_angle {
                 return None;
             }
-            let mut union = a.moments;
-            union += &b.moments;
-            let fit = union.plane()?;
-            let fits = |p: &Part| still_fits(p, p.moments.rms_about(&fit.point, &fit.normal), tolerance);
-            if !(fits(a) && fits(b)) {
-                return None;
-            }
-            Some(joined(a, b, SurfaceModel::Plane { point: fit.point, normal: fit.normal }, fit.rms, union))
+            merge_planes(a, b, tolerance)
         }
-        (
-            SurfaceModel::Cylinder { point: pa, axis: aa, radius: ra, length: la },
-            SurfaceModel::Cylinder { point: pb, axis: ab, radius: rb, .. },
-        ) => {
-            let r = ra.max(rb);
-            let off = |p: &Point3<f64>, q: &Point3<f64>, axis: &nalgebra::Vector3<f64>| {
-                let d = q - p;
-                (d - axis * d.dot(axis)).norm()
-            };
-            if aa.dot(&ab).abs() < cos_angle
-                || (ra - rb).abs() > RADIUS_RATIO_GAP * r
-                || off(&pa, &pb, &aa) > AXIS_OFFSET_GAP * r
-                || off(&pb, &pa, &ab) > AXIS_OFFSET_GAP * r
-            {
-                return None;
-            }
-            let ids = union_ids(&a.ids, &b.ids);
-            let pts: Vec<Point3<f64>> = ids.iter().map(|&i| points[i]).collect();
-            let start = CylinderFit { point: pa, axis: aa, radius: ra, length: la, rms: a.rms };
-            let fit = refit_cylinder(&pts, &start)?;
-            let model = SurfaceModel::Cylinder {
-                point: fit.point,
-                axis: fit.axis,
-                radius: fit.radius,
-                length: fit.length,
-            };
-            let part_rms = |p: &Part| {
-                let ss: f64 = p.ids.iter().map(|&i| model.distance(&points[i]).powi(2)).sum();
-                (ss / p.ids.len().max(1) as f64).sqrt()
-            };
-            if !(still_fits(a, part_rms(a), tolerance) && still_fits(b, part_rms(b), tolerance)) {
-                return None;
-            }
-            let mut union = a.moments;
-            union += &b.moments;
-            Some(joined(a, b, model, fit.rms, union))
+        (SurfaceModel::Cylinder { .. }, SurfaceModel::Cylinder { .. }) => {
+            merge_cylinders(a, b, points, cos_angle, tolerance)
         }
         _ => None,
     }
+}
+
+/// The union of two plane parts if its plane explains both (O(1) by moments).
+fn merge_planes(a: &Part, b: &Part, tolerance: f64) -> Option<Part> {
+    let mut union = a.moments;
+    union += &b.moments;
+    let fit = union.plane()?;
+    let fits = |p: &Part| still_fits(p, p.moments.rms_about(&fit.point, &fit.normal), tolerance);
+    if !(fits(a) && fits(b)) {
+        return None;
+    }
+    let model = SurfaceModel::Plane {
+        point: fit.point,
+        normal: fit.normal,
+    };
+    Some(joined(a, b, model, fit.rms, union))
+}
+
+/// The union of two cylinder parts if, after the quick filters (parallel axes, close
+/// radii, close axis lines), the union's refitted cylinder explains both.
+fn merge_cylinders(
+    a: &Part,
+    b: &Part,
+    points: &[Point3<f64>],
+    cos_angle: f64,
+    tolerance: f64,
+) -> Option<Part> {
+    let (
+        Some(SurfaceModel::Cylinder {
+            point: pa,
+            axis: aa,
+            radius: ra,
+            length: la,
+        }),
+        Some(SurfaceModel::Cylinder {
+            point: pb,
+            axis: ab,
+            radius: rb,
+            ..
+        }),
+    ) = (a.model, b.model)
+    else {
+        return None;
+    };
+    let r = ra.max(rb);
+    let off = |p: &Point3<f64>, q: &Point3<f64>, axis: &nalgebra::Vector3<f64>| {
+        let d = q - p;
+        (d - axis * d.dot(axis)).norm()
+    };
+    if aa.dot(&ab).abs() < cos_angle
+        || (ra - rb).abs() > RADIUS_RATIO_GAP * r
+        || off(&pa, &pb, &aa) > AXIS_OFFSET_GAP * r
+        || off(&pb, &pa, &ab) > AXIS_OFFSET_GAP * r
+    {
+        return None;
+    }
+    let ids = union_ids(&a.ids, &b.ids);
+    let pts: Vec<Point3<f64>> = ids.iter().map(|&i| points[i]).collect();
+    let start = CylinderFit {
+        point: pa,
+        axis: aa,
+        radius: ra,
+        length: la,
+        rms: a.rms,
+    };
+    let fit = refit_cylinder(&pts, &start)?;
+    let model = SurfaceModel::Cylinder {
+        point: fit.point,
+        axis: fit.axis,
+        radius: fit.radius,
+        length: fit.length,
+    };
+    let part_rms = |p: &Part| {
+        let ss: f64 = p
+            .ids
+            .iter()
+            .map(|&i| model.distance(&points[i]).powi(2))
+            .sum();
+        (ss / p.ids.len().max(1) as f64).sqrt()
+    };
+    if !(still_fits(a, part_rms(a), tolerance) && still_fits(b, part_rms(b), tolerance)) {
+        return None;
+    }
+    let mut union = a.moments;
+    union += &b.moments;
+    Some(joined(a, b, model, fit.rms, union))
 }
 
 /// The part made of `a` and `b` with `model`.
@@ -186,7 +244,10 @@ mod tests {
         let fit = moments.plane().unwrap();
         Part {
             ids,
-            model: Some(SurfaceModel::Plane { point: fit.point, normal: fit.normal }),
+            model: Some(SurfaceModel::Plane {
+                point: fit.point,
+                normal: fit.normal,
+            }),
             rms: fit.rms,
             sigma,
             moments,
@@ -211,13 +272,18 @@ mod tests {
         let b = patch(&mut pts, 0.2, 0.0);
         let c = patch(&mut pts, 2.0, 0.0);
         let d = patch(&mut pts, 0.4, 0.05);
-        let parts: Vec<Part> = [a, b, c, d].into_iter().map(|ids| plane_part(&pts, ids, 0.001)).collect();
+        let parts: Vec<Part> = [a, b, c, d]
+            .into_iter()
+            .map(|ids| plane_part(&pts, ids, 0.001))
+            .collect();
         let merged = merge_parts(parts, &pts, 5f64.to_radians().cos(), 2.5);
         let mut sizes: Vec<usize> = merged.iter().map(|p| p.ids.len()).collect();
         sizes.sort_unstable();
         assert_eq!(sizes, [400, 1200]);
         let big = merged.iter().find(|p| p.ids.len() == 1200).unwrap();
-        let Some(SurfaceModel::Plane { normal, .. }) = big.model else { panic!() };
+        let Some(SurfaceModel::Plane { normal, .. }) = big.model else {
+            panic!()
+        };
         assert!(normal.dot(&Vector3::z()).abs() > 1.0 - 1e-9);
         assert_eq!(union_ids(&[1, 4, 9], &[0, 5]), [0, 1, 4, 5, 9]);
     }
@@ -228,7 +294,11 @@ mod tests {
             for j in 0..30 {
                 let phi = phase + i as f64 * 0.08;
                 let s = if (i + j) % 2 == 0 { sigma } else { -sigma };
-                points.push(Point3::new((r + s) * phi.cos(), (r + s) * phi.sin(), j as f64 * 0.003));
+                points.push(Point3::new(
+                    (r + s) * phi.cos(),
+                    (r + s) * phi.sin(),
+                    j as f64 * 0.003,
+                ));
             }
         }
         let ids: Vec<usize> = (start..points.len()).collect();
@@ -238,7 +308,13 @@ mod tests {
             radius: r,
             length: 0.09,
         };
-        Part { moments: Moments::of(points, &ids), ids, model: Some(model), rms: sigma, sigma }
+        Part {
+            moments: Moments::of(points, &ids),
+            ids,
+            model: Some(model),
+            rms: sigma,
+            sigma,
+        }
     }
 
     #[test]
@@ -247,10 +323,22 @@ mod tests {
         // (r = 40 and 37 mm, σ = 0.7 mm): within t σ = 1.75 mm of a cylinder between
         // them, but each much worse explained by it than by its own.
         let mut pts = Vec::new();
-        let arcs = vec![cylinder_part(&mut pts, 0.04, 0.0, 0.0006), cylinder_part(&mut pts, 0.04, 3.3, 0.0006)];
-        assert_eq!(merge_parts(arcs, &pts, 5f64.to_radians().cos(), 2.5).len(), 1);
+        let arcs = vec![
+            cylinder_part(&mut pts, 0.04, 0.0, 0.0006),
+            cylinder_part(&mut pts, 0.04, 3.3, 0.0006),
+        ];
+        assert_eq!(
+            merge_parts(arcs, &pts, 5f64.to_radians().cos(), 2.5).len(),
+            1
+        );
         let mut pts = Vec::new();
-        let walls = vec![cylinder_part(&mut pts, 0.04, 0.0, 0.0007), cylinder_part(&mut pts, 0.037, 0.2, 0.0007)];
-        assert_eq!(merge_parts(walls, &pts, 5f64.to_radians().cos(), 2.5).len(), 2);
+        let walls = vec![
+            cylinder_part(&mut pts, 0.04, 0.0, 0.0007),
+            cylinder_part(&mut pts, 0.037, 0.2, 0.0007),
+        ];
+        assert_eq!(
+            merge_parts(walls, &pts, 5f64.to_radians().cos(), 2.5).len(),
+            2
+        );
     }
 }

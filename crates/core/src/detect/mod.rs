@@ -53,12 +53,12 @@ use nalgebra::Point3;
 use rayon::prelude::*;
 
 pub use classify::{CURVED_GAIN, Classified, MAX_RADIUS_PER_EXTENT, classify};
-pub use split::{MAX_SPLIT_DEPTH, PLANE_CANDIDATES};
 pub use grow::{GrowParams, grow_regions};
 pub use model::{SurfaceModel, z_to};
 pub use noise::NoiseMap;
 pub use normals::Neighbourhoods;
 pub use sample::{voxel_grid, voxel_subsample};
+pub use split::{MAX_SPLIT_DEPTH, PLANE_CANDIDATES};
 
 use crate::check;
 use crate::spatial::{PointIndex, median_spacing};
@@ -224,19 +224,24 @@ pub struct Detection {
 /// Errors: an empty cloud ([`Error::EmptyCloud`]), a non-finite point
 /// ([`Error::NonFinite`]), a mismatched index ([`Error::Mismatch`]), options out of
 /// range ([`Error::OutOfRange`]).
-pub fn detect(points: &[Point3<f64>], index: &PointIndex, options: &DetectOptions) -> Result<Detection> {
+pub fn detect(
+    points: &[Point3<f64>],
+    index: &PointIndex,
+    options: &DetectOptions,
+) -> Result<Detection> {
     options.validate()?;
-    if points.is_empty() {
-        return Err(Error::EmptyCloud);
-    }
-    check::same_len("indexed points", index.len(), "points", points.len())?;
-    if let Some(i) = points.iter().position(|p| !p.coords.iter().all(|c| c.is_finite())) {
-        return Err(Error::NonFinite { what: "point".into(), index: i });
-    }
+    check_input(points, index)?;
     let Some(spacing) = median_spacing(points, index, SPACING_PROBES) else {
-        return Ok(Detection::nothing(points.len(), options.noise.unwrap_or(0.0)));
+        return Ok(Detection::nothing(
+            points.len(),
+            options.noise.unwrap_or(0.0),
+        ));
     };
-    let sub = voxel_subsample(points, spacing, options.max_samples.unwrap_or(DEFAULT_MAX_SAMPLES));
+    let sub = voxel_subsample(
+        points,
+        spacing,
+        options.max_samples.unwrap_or(DEFAULT_MAX_SAMPLES),
+    );
     let (sample_ids, voxel) = match sub {
         Some((ids, edge)) => (ids, Some(edge)),
         None => ((0..points.len()).collect(), None),
@@ -261,11 +266,17 @@ pub fn detect(points: &[Point3<f64>], index: &PointIndex, options: &DetectOption
         ),
     };
     let sigma: Vec<f64> = samples.iter().map(|p| fine.at(p)).collect();
-    let model_sigma: Vec<f64> = samples.iter().zip(&sigma).map(|(p, s)| coarse.at(p).max(*s)).collect();
-    let noise = fine.global();
+    let model_sigma: Vec<f64> = samples
+        .iter()
+        .zip(&sigma)
+        .map(|(p, s)| coarse.at(p).max(*s))
+        .collect();
     let angles: Vec<f64> = match options.angle {
         Some(a) => vec![a; samples.len()],
-        None => sigma.iter().map(|s| growing_angle(*s, radius, nb.k)).collect(),
+        None => sigma
+            .iter()
+            .map(|s| growing_angle(*s, radius, nb.k))
+            .collect(),
     };
     let tolerance = options.tolerance.unwrap_or(DEFAULT_TOLERANCE);
     let grow = GrowParams {
@@ -273,9 +284,14 @@ pub fn detect(points: &[Point3<f64>], index: &PointIndex, options: &DetectOption
         cos_angle: angles.iter().map(|a| a.cos()).collect(),
         max_residual: sigma.iter().map(|s| PROPAGATE_SIGMAS * s).collect(),
     };
-    let min_points = options.min_points.unwrap_or(MIN_SEGMENT_NEIGHBOURHOODS * nb.k).max(3);
-    let regions: Vec<Vec<usize>> =
-        grow_regions(&nb, &grow).into_iter().filter(|r| r.len() >= min_points).collect();
+    let min_points = options
+        .min_points
+        .unwrap_or(MIN_SEGMENT_NEIGHBOURHOODS * nb.k)
+        .max(3);
+    let regions: Vec<Vec<usize>> = grow_regions(&nb, &grow)
+        .into_iter()
+        .filter(|r| r.len() >= min_points)
+        .collect();
     let splitter = Splitter {
         samples: &samples,
         nb: &nb,
@@ -285,19 +301,44 @@ pub fn detect(points: &[Point3<f64>], index: &PointIndex, options: &DetectOption
         min_points,
         neighbours: grow.neighbours,
     };
-    let parts: Vec<Part> = regions.into_par_iter().flat_map_iter(|ids| splitter.parts(ids)).collect();
+    let parts: Vec<Part> = regions
+        .into_par_iter()
+        .flat_map_iter(|ids| splitter.parts(ids))
+        .collect();
     let angle = normals::median(&mut angles.clone()).unwrap_or(0.0);
     let parts = merge_parts(parts, &samples, angle.cos(), tolerance);
-    let mut detection = expand::expand(
-        points, &samples, &sample_ids, sample_index, &nb, parts, grow.neighbours, tolerance,
-    );
-    detection.noise = noise;
-    detection.model_noise = coarse.global().max(noise);
+    let sampled = expand::Samples {
+        points: &samples,
+        ids: &sample_ids,
+        index: sample_index,
+        nb: &nb,
+    };
+    let mut detection = expand::expand(points, &sampled, parts, grow.neighbours, tolerance);
+    detection.noise = fine.global();
+    detection.model_noise = coarse.global().max(fine.global());
     detection.spacing = spacing;
     detection.angle = angle;
     detection.voxel = voxel;
     detection.samples = samples.len();
     Ok(detection)
+}
+
+/// Checks that `points` is not empty, is finite and is what `index` indexes.
+fn check_input(points: &[Point3<f64>], index: &PointIndex) -> Result<()> {
+    if points.is_empty() {
+        return Err(Error::EmptyCloud);
+    }
+    check::same_len("indexed points", index.len(), "points", points.len())?;
+    match points
+        .iter()
+        .position(|p| !p.coords.iter().all(|c| c.is_finite()))
+    {
+        Some(index) => Err(Error::NonFinite {
+            what: "point".into(),
+            index,
+        }),
+        None => Ok(()),
+    }
 }
 
 impl Detection {

@@ -117,7 +117,11 @@ mod tests {
 
     #[test]
     fn cylinder_primitive_matches_the_model() {
-        for axis in [Vector3::new(0.3, -0.5, 0.8).normalize(), -Vector3::z(), Vector3::z()] {
+        for axis in [
+            Vector3::new(0.3, -0.5, 0.8).normalize(),
+            -Vector3::z(),
+            Vector3::z(),
+        ] {
             let model = SurfaceModel::Cylinder {
                 point: Point3::new(1.0, 2.0, 3.0),
                 axis,

@@ -107,11 +107,17 @@ impl NoiseMap {
             flatness: nb.flatness[i],
             residual: nb.residual[i],
         };
-        let usable: Vec<usize> = (0..points.len()).filter(|&i| nb.normals[i] != Vector3::zeros()).collect();
+        let usable: Vec<usize> = (0..points.len())
+            .filter(|&i| nb.normals[i] != Vector3::zeros())
+            .collect();
         let all: Vec<LocalPlane> = usable.iter().map(|&i| plane(i)).collect();
         let global = noise_sigma(&all, spacing);
         let edge = CELL_RADII * radius;
-        let mut map = NoiseMap { edge, cells: HashMap::new(), global };
+        let mut map = NoiseMap {
+            edge,
+            cells: HashMap::new(),
+            global,
+        };
         if !(edge.is_finite() && edge > 0.0) {
             return map;
         }
@@ -132,7 +138,11 @@ impl NoiseMap {
 
     /// The same σ everywhere.
     pub fn uniform(sigma: f64) -> Self {
-        NoiseMap { edge: f64::INFINITY, cells: HashMap::new(), global: sigma }
+        NoiseMap {
+            edge: f64::INFINITY,
+            cells: HashMap::new(),
+            global: sigma,
+        }
     }
 
     /// The cell of `p`.
@@ -146,7 +156,10 @@ impl NoiseMap {
         if self.cells.is_empty() {
             return self.global;
         }
-        self.cells.get(&self.cell(p)).copied().unwrap_or(self.global)
+        self.cells
+            .get(&self.cell(p))
+            .copied()
+            .unwrap_or(self.global)
     }
 
     /// σ over the whole cloud (scene units).

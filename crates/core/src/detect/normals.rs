@@ -18,6 +18,9 @@ use crate::surface::pca_plane;
 /// a region.
 const DEGENERATE_FLATNESS: f64 = 1.0 / 3.0;
 
+/// One point's neighbour ids, PCA plane (normal, flatness, residual) and radius.
+type Row = (Vec<u32>, Option<(Vector3<f64>, f64, f64)>, f64);
+
 /// Normals, curvature and neighbour lists of a set of points.
 #[derive(Debug, Clone)]
 pub struct Neighbourhoods {
@@ -42,7 +45,7 @@ impl Neighbourhoods {
     /// over exactly these points) with `k` neighbours each.
     pub fn new(points: &[Point3<f64>], index: &PointIndex, k: usize) -> Self {
         let k = k.max(1).min(points.len().max(1));
-        let rows: Vec<(Vec<u32>, Option<(Vector3<f64>, f64, f64)>, f64)> = points
+        let rows: Vec<Row> = points
             .par_iter()
             .map(|p| {
                 let hits = index.nearest_n(p, k);
@@ -124,9 +127,16 @@ mod tests {
             assert_eq!(nb.row(i)[0] as usize, i);
             assert!(nb.normals[i].dot(&n).abs() > 1.0 - 1e-9);
             assert!(nb.flatness[i] < 1e-12 && nb.residual[i] < 1e-9);
-            assert!(nb.radius[i] > 0.015 && nb.radius[i] < 0.05, "{}", nb.radius[i]);
+            assert!(
+                nb.radius[i] > 0.015 && nb.radius[i] < 0.05,
+                "{}",
+                nb.radius[i]
+            );
         }
-        let one_thread = rayon::ThreadPoolBuilder::new().num_threads(1).build().unwrap();
+        let one_thread = rayon::ThreadPoolBuilder::new()
+            .num_threads(1)
+            .build()
+            .unwrap();
         let again = one_thread.install(|| Neighbourhoods::new(&pts, &index, 16));
         assert_eq!(again.neighbours, nb.neighbours);
         assert_eq!(again.normals, nb.normals);

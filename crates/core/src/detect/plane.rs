@@ -144,9 +144,17 @@ mod tests {
         let n = Vector3::new(1.0, 2.0, 2.0) / 3.0;
         let u = n.cross(&Vector3::x()).normalize();
         let v = n.cross(&u);
-        let at = |a: f64, b: f64, h: f64| Point3::from(Vector3::new(5.0, -3.0, 100.0) + u * a + v * b + n * h);
+        let at = |a: f64, b: f64, h: f64| {
+            Point3::from(Vector3::new(5.0, -3.0, 100.0) + u * a + v * b + n * h)
+        };
         let pts: Vec<Point3<f64>> = (0..400)
-            .map(|i| at((i % 20) as f64 * 0.1, (i / 20) as f64 * 0.1, if (i + i / 20) % 2 == 0 { 0.01 } else { -0.01 }))
+            .map(|i| {
+                at(
+                    (i % 20) as f64 * 0.1,
+                    (i / 20) as f64 * 0.1,
+                    if (i + i / 20) % 2 == 0 { 0.01 } else { -0.01 },
+                )
+            })
             .collect();
         let all: Vec<usize> = (0..400).collect();
         let whole = Moments::of(&pts, &all);
@@ -154,7 +162,12 @@ mod tests {
         parts += &Moments::of(&pts, &all[150..]);
         let (a, b) = (whole.plane().unwrap(), parts.plane().unwrap());
         assert!(a.normal.dot(&n).abs() > 1.0 - 1e-9 && b.normal.dot(&n).abs() > 1.0 - 1e-9);
-        assert!((a.rms - 0.01).abs() < 1e-9 && (b.rms - 0.01).abs() < 1e-9, "{} {}", a.rms, b.rms);
+        assert!(
+            (a.rms - 0.01).abs() < 1e-9 && (b.rms - 0.01).abs() < 1e-9,
+            "{} {}",
+            a.rms,
+            b.rms
+        );
         // RMS about a plane shifted by 0.02 along n: √(0.01² + 0.02²).
         let shifted = a.point + n * 0.02;
         assert!((whole.rms_about(&shifted, &n) - 0.0005f64.sqrt()).abs() < 1e-9);

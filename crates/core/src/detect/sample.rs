@@ -82,7 +82,12 @@ mod tests {
         // One point per voxel: no two kept points share a voxel.
         let cells: std::collections::HashSet<[i64; 2]> = kept
             .iter()
-            .map(|&i| [(pts[i].x / edge).floor() as i64, (pts[i].y / edge).floor() as i64])
+            .map(|&i| {
+                [
+                    (pts[i].x / edge).floor() as i64,
+                    (pts[i].y / edge).floor() as i64,
+                ]
+            })
             .collect();
         assert_eq!(cells.len(), kept.len());
     }

@@ -82,7 +82,10 @@ pub fn fit_sphere(points: &[Point3<f64>]) -> Option<SphereFit> {
         return None;
     }
     let centre = Point3::from(centre);
-    let ss: f64 = points.iter().map(|p| ((p - centre).norm() - radius).powi(2)).sum();
+    let ss: f64 = points
+        .iter()
+        .map(|p| ((p - centre).norm() - radius).powi(2))
+        .sum();
     Some(SphereFit {
         centre,
         radius,
@@ -102,7 +105,11 @@ mod tests {
             .map(|(i, j)| {
                 let (theta, phi) = (i as f64 * 0.03, j as f64 * 0.157);
                 let s = if (i + j) % 2 == 0 { 0.001 } else { -0.001 };
-                c + Vector3::new(theta.sin() * phi.cos(), theta.sin() * phi.sin(), theta.cos()) * (0.3 + s)
+                c + Vector3::new(
+                    theta.sin() * phi.cos(),
+                    theta.sin() * phi.sin(),
+                    theta.cos(),
+                ) * (0.3 + s)
             })
             .collect();
         let fit = fit_sphere(&pts).unwrap();

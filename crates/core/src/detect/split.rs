@@ -66,15 +66,29 @@ impl Splitter<'_> {
     /// The part of `ids` with its model (`None`: clutter).
     fn part(&self, ids: Vec<usize>) -> Part {
         let sigma = self.noise(&ids);
-        let c = classify(self.samples, &self.nb.normals, &ids, sigma, self.tolerance, self.spheres);
+        let c = classify(
+            self.samples,
+            &self.nb.normals,
+            &ids,
+            sigma,
+            self.tolerance,
+            self.spheres,
+        );
         let moments = Moments::of(self.samples, &ids);
-        Part { ids, model: c.model, rms: c.rms, sigma, moments }
+        Part {
+            ids,
+            model: c.model,
+            rms: c.rms,
+            sigma,
+            moments,
+        }
     }
 
     /// Step 1–4 of the module docs on `ids` at nesting `depth`, parts pushed to `out`.
     fn split(&self, ids: Vec<usize>, depth: usize, out: &mut Vec<Part>) {
         let part = self.part(ids);
-        if part.model.is_some() || depth >= MAX_SPLIT_DEPTH || part.ids.len() < 2 * self.min_points {
+        if part.model.is_some() || depth >= MAX_SPLIT_DEPTH || part.ids.len() < 2 * self.min_points
+        {
             out.push(part);
             return;
         }
@@ -84,8 +98,11 @@ impl Splitter<'_> {
             return;
         };
         let (on, off): (Vec<usize>, Vec<usize>) = part.ids.iter().partition(|&&i| inlier[i]);
-        let pieces: Vec<Vec<usize>> =
-            self.components(&on).into_iter().filter(|c| c.len() >= self.min_points).collect();
+        let pieces: Vec<Vec<usize>> = self
+            .components(&on)
+            .into_iter()
+            .filter(|c| c.len() >= self.min_points)
+            .collect();
         if pieces.is_empty() {
             out.push(part);
             return;
@@ -111,10 +128,17 @@ impl Splitter<'_> {
     /// within `limit` (scene units), or `None` when no candidate plane exists.
     fn dominant_plane(&self, ids: &[usize], limit: f64) -> Option<Vec<bool>> {
         let mut by_flatness: Vec<usize> = ids.to_vec();
-        by_flatness.sort_by(|&a, &b| self.nb.flatness[a].total_cmp(&self.nb.flatness[b]).then(a.cmp(&b)));
+        by_flatness.sort_by(|&a, &b| {
+            self.nb.flatness[a]
+                .total_cmp(&self.nb.flatness[b])
+                .then(a.cmp(&b))
+        });
         let half = by_flatness.len().div_ceil(2);
         let within = |point: &Point3<f64>, normal: &nalgebra::Vector3<f64>| -> Vec<usize> {
-            ids.iter().copied().filter(|&i| (self.samples[i] - point).dot(normal).abs() <= limit).collect()
+            ids.iter()
+                .copied()
+                .filter(|&i| (self.samples[i] - point).dot(normal).abs() <= limit)
+                .collect()
         };
         let mut best: Option<Vec<usize>> = None;
         for c in 0..PLANE_CANDIDATES {
@@ -130,7 +154,9 @@ impl Splitter<'_> {
         }
         let mut inliers = best?;
         for _ in 0..PLANE_REFITS {
-            let Some(fit) = Moments::of(self.samples, &inliers).plane() else { break };
+            let Some(fit) = Moments::of(self.samples, &inliers).plane() else {
+                break;
+            };
             inliers = within(&fit.point, &fit.normal);
         }
         let mut member = vec![false; self.samples.len()];
@@ -161,11 +187,11 @@ impl Splitter<'_> {
             while let Some(i) = stack.pop() {
                 piece.push(i);
                 for &j in &self.nb.row(i)[1..=take] {
-                    if let Some(&k) = inside.get(&(j as usize)) {
-                        if !seen[k] {
-                            seen[k] = true;
-                            stack.push(j as usize);
-                        }
+                    if let Some(&k) = inside.get(&(j as usize))
+                        && !seen[k]
+                    {
+                        seen[k] = true;
+                        stack.push(j as usize);
                     }
                 }
             }
