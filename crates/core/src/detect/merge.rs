@@ -5,8 +5,8 @@
 //! each part's points with an RMS of at most `t σ_part` (`t` the tolerance, `σ_part`
 //! the part's noise) and at most [`MAX_RMS_GROWTH`] times what the part's own model
 //! leaves (or its σ, if larger) — beyond that the union's model is a compromise between
-//! two surfaces, not one surface seen twice (the outer and inner wall of a mug, 3 mm
-//! apart, are both within `t σ` of a cylinder between them). One primitive then describes the same points as two at the same
+//! two surfaces, not one surface seen twice. Cylinders must also have radii within
+//! `t σ` of each other (`RADIUS_RATIO_GAP`). One primitive then describes the same points as two at the same
 //! residual cost, so the shorter description wins (an MDL argument: equal data cost,
 //! one model's parameters fewer). Adjacency is **not** required: a wall split in two by
 //! an occluder in front of it is one plane; its extent (the two point sets) is left to
@@ -27,7 +27,12 @@ use super::SurfaceModel;
 use super::cylinder::{CylinderFit, refit_cylinder};
 use super::plane::Moments;
 
-/// Cylinders merge only if their radii differ by at most this fraction of the larger.
+/// Cylinders merge only if their radii differ by at most this fraction of the larger,
+/// and by at most `t σ`: coaxial cylinders whose radii differ by more than the noise are
+/// two surfaces (the outer and inner wall of a tube), even where a cylinder between them
+/// with a shifted axis explains both (seen from one side, the front of the outer wall
+/// and the back of the inner wall lie on one such cylinder: measured on the shared
+/// mug, 40.0 and 37.3 mm walls, one 38.5 mm cylinder at 0.8 mm RMS).
 const RADIUS_RATIO_GAP: f64 = 0.2;
 
 /// Cylinders merge only if each one's axis passes within this fraction of the larger
@@ -36,7 +41,7 @@ const AXIS_OFFSET_GAP: f64 = 0.2;
 
 /// A part's RMS about the union's model may exceed its own model's RMS (or its σ, if
 /// larger) by at most this factor (dimensionless).
-pub const MAX_RMS_GROWTH: f64 = 1.5;
+pub const MAX_RMS_GROWTH: f64 = 2.0;
 
 /// Whether a part whose points lie at RMS `about_union` from the union's model is still
 /// explained by it (module docs).
@@ -167,7 +172,7 @@ fn merge_cylinders(
         (d - axis * d.dot(axis)).norm()
     };
     if aa.dot(&ab).abs() < cos_angle
-        || (ra - rb).abs() > RADIUS_RATIO_GAP * r
+        || (ra - rb).abs() > (tolerance * a.sigma.max(b.sigma)).min(RADIUS_RATIO_GAP * r)
         || off(&pa, &pb, &aa) > AXIS_OFFSET_GAP * r
         || off(&pb, &pa, &ab) > AXIS_OFFSET_GAP * r
     {
