@@ -210,7 +210,8 @@ pub struct Detection {
     pub model_noise: f64,
     /// The median nearest-neighbour distance of the input (scene units).
     pub spacing: f64,
-    /// The growing angle used (radians).
+    /// The growing angle (radians): the median over the samples of the local angle
+    /// derived from the fine σ (or the angle given); also the merge angle.
     pub angle: f64,
     /// The voxel edge of the subsampling (scene units), `None` when every point was a sample.
     pub voxel: Option<f64>,
