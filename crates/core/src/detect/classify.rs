@@ -85,18 +85,17 @@ pub fn classify(
             rms: c.rms,
         });
     }
-    if spheres {
-        if let Some(s) = fit_sphere(&pts).filter(|s| accept(s.rms, s.radius)) {
-            if best.is_none_or(|b| s.rms < b.rms) {
-                best = Some(Classified {
-                    model: Some(SurfaceModel::Sphere {
-                        centre: s.centre,
-                        radius: s.radius,
-                    }),
-                    rms: s.rms,
-                });
-            }
-        }
+    if spheres
+        && let Some(s) = fit_sphere(&pts).filter(|s| accept(s.rms, s.radius))
+        && best.is_none_or(|b| s.rms < b.rms)
+    {
+        best = Some(Classified {
+            model: Some(SurfaceModel::Sphere {
+                centre: s.centre,
+                radius: s.radius,
+            }),
+            rms: s.rms,
+        });
     }
     best.unwrap_or(Classified {
         model: None,

@@ -97,7 +97,8 @@ pub fn kasa_circle(xy: &[(f64, f64)]) -> Option<((f64, f64), f64)> {
             m + d * d.transpose()
         });
     let spread = scatter.symmetric_eigenvalues();
-    if !(spread.min() > COLLINEAR * spread.max()) {
+    let spans_a_plane = spread.min() > COLLINEAR * spread.max();
+    if !spans_a_plane {
         return None;
     }
     for &(x, y) in xy {

@@ -30,57 +30,48 @@ const NONE: u32 = u32::MAX;
 /// reaches at most this many growing steps into fragments.
 const MAX_ABSORB_PASSES: usize = 32;
 
+/// The samples of a detection: their points, where they come from, their index and
+/// neighbourhoods.
+#[derive(Debug, Clone, Copy)]
+pub struct Samples<'a> {
+    /// The sample points: `points[s] = input[ids[s]]`.
+    pub points: &'a [Point3<f64>],
+    /// The input index of each sample.
+    pub ids: &'a [usize],
+    /// An index over `points`.
+    pub index: &'a PointIndex,
+    /// Their neighbourhoods.
+    pub nb: &'a Neighbourhoods,
+}
+
+/// A segment's points with its refitted model and RMS (`None`: clutter).
+type Finished = (Vec<usize>, Option<(SurfaceModel, f64)>);
+
 /// Builds the [`Detection`] (without its scalar fields) from the merged `parts` of the
-/// samples. `samples[s] = points[sample_ids[s]]`; `sample_index` indexes `samples`;
-/// fragments look at their first `grow_neighbours` neighbours.
+/// `samples` of the input `points`; fragments look at their first `grow_neighbours`
+/// neighbours.
 pub fn expand(
     points: &[Point3<f64>],
-    samples: &[Point3<f64>],
-    sample_ids: &[usize],
-    sample_index: &PointIndex,
-    nb: &Neighbourhoods,
+    samples: &Samples,
     mut parts: Vec<Part>,
     grow_neighbours: usize,
     tolerance: f64,
 ) -> Detection {
-    let mut label = vec![NONE; samples.len()];
+    let mut label = vec![NONE; samples.points.len()];
     for (k, part) in parts.iter().enumerate() {
         for &s in &part.ids {
             label[s] = k as u32;
         }
     }
     absorb_fragments(
-        samples,
-        nb,
+        samples.points,
+        samples.nb,
         &mut parts,
         &mut label,
         grow_neighbours,
         tolerance,
     );
-    let mut sample_of = vec![NONE; points.len()];
-    for (s, &i) in sample_ids.iter().enumerate() {
-        sample_of[i] = s as u32;
-    }
-    let point_label: Vec<u32> = (0..points.len())
-        .into_par_iter()
-        .map(|i| {
-            if sample_of[i] != NONE {
-                return label[sample_of[i] as usize];
-            }
-            let Some((s, _)) = sample_index.nearest(&points[i]) else {
-                return NONE;
-            };
-            let l = label[s as usize];
-            if l == NONE {
-                return NONE;
-            }
-            let part = &parts[l as usize];
-            match part.model {
-                Some(m) if m.distance(&points[i]) > tolerance * part.sigma => NONE,
-                _ => l,
-            }
-        })
-        .collect();
+    let point_label = point_labels(points, samples, &parts, &label, tolerance);
     let mut members: Vec<Vec<usize>> = vec![Vec::new(); parts.len()];
     let mut unassigned = Vec::new();
     for (i, &l) in point_label.iter().enumerate() {
@@ -89,7 +80,7 @@ pub fn expand(
             l => members[l as usize].push(i),
         }
     }
-    let finished: Vec<(Vec<usize>, Option<(SurfaceModel, f64)>)> = members
+    let finished: Vec<Finished> = members
         .into_par_iter()
         .zip(parts.par_iter())
         .map(|(ids, part)| {
@@ -128,6 +119,41 @@ pub fn expand(
         voxel: None,
         samples: 0,
     }
+}
+
+/// Step 2 of the module docs: the part of every input point (`NONE`: unassigned), from
+/// the sample `label`s.
+fn point_labels(
+    points: &[Point3<f64>],
+    samples: &Samples,
+    parts: &[Part],
+    label: &[u32],
+    tolerance: f64,
+) -> Vec<u32> {
+    let mut sample_of = vec![NONE; points.len()];
+    for (s, &i) in samples.ids.iter().enumerate() {
+        sample_of[i] = s as u32;
+    }
+    (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            if sample_of[i] != NONE {
+                return label[sample_of[i] as usize];
+            }
+            let Some((s, _)) = samples.index.nearest(&points[i]) else {
+                return NONE;
+            };
+            let l = label[s as usize];
+            if l == NONE {
+                return NONE;
+            }
+            let part = &parts[l as usize];
+            match part.model {
+                Some(m) if m.distance(&points[i]) > tolerance * part.sigma => NONE,
+                _ => l,
+            }
+        })
+        .collect()
 }
 
 /// Step 1 of the module docs: fragments join a neighbouring segment whose model fits,

@@ -101,7 +101,7 @@ pub const MIN_ANGLE_DEG: f64 = 5.0;
 pub const MAX_ANGLE_DEG: f64 = 15.0;
 
 /// A sample propagates growth only if its residual is at most this many σ.
-pub const PROPAGATE_SIGMAS: f64 = 2.0;
+pub const PROPAGATE_SIGMAS: f64 = 3.0;
 
 /// Default smallest segment, in samples: a region must hold at least this many
 /// neighbourhoods' worth of points (× `k`) to be a surface rather than a fragment.
@@ -210,7 +210,8 @@ pub struct Detection {
     pub model_noise: f64,
     /// The median nearest-neighbour distance of the input (scene units).
     pub spacing: f64,
-    /// The growing angle used (radians).
+    /// The growing angle (radians): the median over the samples of the local angle
+    /// derived from the fine σ (or the angle given); also the merge angle.
     pub angle: f64,
     /// The voxel edge of the subsampling (scene units), `None` when every point was a sample.
     pub voxel: Option<f64>,
@@ -230,19 +231,7 @@ pub fn detect(
     options: &DetectOptions,
 ) -> Result<Detection> {
     options.validate()?;
-    if points.is_empty() {
-        return Err(Error::EmptyCloud);
-    }
-    check::same_len("indexed points", index.len(), "points", points.len())?;
-    if let Some(i) = points
-        .iter()
-        .position(|p| !p.coords.iter().all(|c| c.is_finite()))
-    {
-        return Err(Error::NonFinite {
-            what: "point".into(),
-            index: i,
-        });
-    }
+    check_input(points, index)?;
     let Some(spacing) = median_spacing(points, index, SPACING_PROBES) else {
         return Ok(Detection::nothing(
             points.len(),
@@ -283,7 +272,6 @@ pub fn detect(
         .zip(&sigma)
         .map(|(p, s)| coarse.at(p).max(*s))
         .collect();
-    let noise = fine.global();
     let angles: Vec<f64> = match options.angle {
         Some(a) => vec![a; samples.len()],
         None => sigma
@@ -320,23 +308,38 @@ pub fn detect(
         .collect();
     let angle = normals::median(&mut angles.clone()).unwrap_or(0.0);
     let parts = merge_parts(parts, &samples, angle.cos(), tolerance);
-    let mut detection = expand::expand(
-        points,
-        &samples,
-        &sample_ids,
-        sample_index,
-        &nb,
-        parts,
-        grow.neighbours,
-        tolerance,
-    );
-    detection.noise = noise;
-    detection.model_noise = coarse.global().max(noise);
+    let sampled = expand::Samples {
+        points: &samples,
+        ids: &sample_ids,
+        index: sample_index,
+        nb: &nb,
+    };
+    let mut detection = expand::expand(points, &sampled, parts, grow.neighbours, tolerance);
+    detection.noise = fine.global();
+    detection.model_noise = coarse.global().max(fine.global());
     detection.spacing = spacing;
     detection.angle = angle;
     detection.voxel = voxel;
     detection.samples = samples.len();
     Ok(detection)
+}
+
+/// Checks that `points` is not empty, is finite and is what `index` indexes.
+fn check_input(points: &[Point3<f64>], index: &PointIndex) -> Result<()> {
+    if points.is_empty() {
+        return Err(Error::EmptyCloud);
+    }
+    check::same_len("indexed points", index.len(), "points", points.len())?;
+    match points
+        .iter()
+        .position(|p| !p.coords.iter().all(|c| c.is_finite()))
+    {
+        Some(index) => Err(Error::NonFinite {
+            what: "point".into(),
+            index,
+        }),
+        None => Ok(()),
+    }
 }
 
 impl Detection {
@@ -357,12 +360,14 @@ impl Detection {
 }
 
 /// The coarse-scale noise map: neighbourhoods of `k` points of a voxel grid of
-/// [`noise::COARSE_FACTOR`] × `pitch` over `samples`.
+/// [`noise::COARSE_FACTOR`] × `pitch` over `samples`, their residuals taken off a
+/// height quadric so that curvature at the coarse scale does not count as noise.
 fn coarse_noise(samples: &[Point3<f64>], pitch: f64, k: usize, spacing: f64) -> NoiseMap {
     let ids = voxel_grid(samples, noise::COARSE_FACTOR * pitch);
     let coarse: Vec<Point3<f64>> = ids.iter().map(|&i| samples[i]).collect();
     let index = PointIndex::new(&coarse);
-    let nb = Neighbourhoods::new(&coarse, &index, k);
+    let mut nb = Neighbourhoods::new(&coarse, &index, k);
+    nb.residual = noise::quadric_residuals(&coarse, &nb);
     NoiseMap::new(&coarse, &nb, spacing, median_radius(&nb))
 }
 

@@ -24,7 +24,8 @@
 
 use std::collections::HashMap;
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Point3, SMatrix, SVector, Vector3};
+use rayon::prelude::*;
 
 use super::normals::Neighbourhoods;
 use crate::surface::{LocalPlane, noise_sigma};
@@ -40,6 +41,49 @@ pub const MIN_CELL_SAMPLES: usize = 64;
 /// The coarse noise scale, in fine neighbourhood radii (the voxel edge of the coarse grid
 /// is this many times the fine sample pitch).
 pub const COARSE_FACTOR: f64 = 4.0;
+
+/// Parameters of the local height quadric `h = a + b u + c v + d u² + e uv + f v²`.
+const QUADRIC_PARAMS: usize = 6;
+
+/// The residual of each neighbourhood of `nb` (over `points`) after a least-squares
+/// height quadric in its PCA frame, with the degrees of freedom restored
+/// (`√(Σr² / (k − 6))`), scene units; the PCA residual where the fit is singular. On a
+/// curved surface the plane residual contains the sagitta (`R²/(8ρ)` for radius `ρ`);
+/// the quadric removes it and leaves the noise at the scale of the neighbourhood.
+pub fn quadric_residuals(points: &[Point3<f64>], nb: &Neighbourhoods) -> Vec<f64> {
+    (0..points.len())
+        .into_par_iter()
+        .map(|i| {
+            let n = nb.normals[i];
+            let row = nb.row(i);
+            if n == Vector3::zeros() || row.len() <= QUADRIC_PARAMS {
+                return nb.residual[i];
+            }
+            let (u, v) = super::cylinder::perpendicular_basis(&n);
+            let o = points[i];
+            let mut ata = SMatrix::<f64, QUADRIC_PARAMS, QUADRIC_PARAMS>::zeros();
+            let mut atb = SVector::<f64, QUADRIC_PARAMS>::zeros();
+            let local: Vec<(SVector<f64, QUADRIC_PARAMS>, f64)> = row
+                .iter()
+                .map(|&j| {
+                    let d = points[j as usize] - o;
+                    let (x, y) = (d.dot(&u), d.dot(&v));
+                    (SVector::from([1.0, x, y, x * x, x * y, y * y]), d.dot(&n))
+                })
+                .collect();
+            for (a, h) in &local {
+                ata += a * a.transpose();
+                atb += a * *h;
+            }
+            let Some(c) = ata.cholesky() else {
+                return nb.residual[i];
+            };
+            let coef = c.solve(&atb);
+            let ss: f64 = local.iter().map(|(a, h)| (h - a.dot(&coef)).powi(2)).sum();
+            (ss / (local.len() - QUADRIC_PARAMS) as f64).sqrt()
+        })
+        .collect()
+}
 
 /// σ by position (scene units).
 #[derive(Debug, Clone)]

@@ -18,6 +18,9 @@ use crate::surface::pca_plane;
 /// a region.
 const DEGENERATE_FLATNESS: f64 = 1.0 / 3.0;
 
+/// One point's neighbour ids, PCA plane (normal, flatness, residual) and radius.
+type Row = (Vec<u32>, Option<(Vector3<f64>, f64, f64)>, f64);
+
 /// Normals, curvature and neighbour lists of a set of points.
 #[derive(Debug, Clone)]
 pub struct Neighbourhoods {
@@ -42,7 +45,7 @@ impl Neighbourhoods {
     /// over exactly these points) with `k` neighbours each.
     pub fn new(points: &[Point3<f64>], index: &PointIndex, k: usize) -> Self {
         let k = k.max(1).min(points.len().max(1));
-        let rows: Vec<(Vec<u32>, Option<(Vector3<f64>, f64, f64)>, f64)> = points
+        let rows: Vec<Row> = points
             .par_iter()
             .map(|p| {
                 let hits = index.nearest_n(p, k);

@@ -187,11 +187,11 @@ impl Splitter<'_> {
             while let Some(i) = stack.pop() {
                 piece.push(i);
                 for &j in &self.nb.row(i)[1..=take] {
-                    if let Some(&k) = inside.get(&(j as usize)) {
-                        if !seen[k] {
-                            seen[k] = true;
-                            stack.push(j as usize);
-                        }
+                    if let Some(&k) = inside.get(&(j as usize))
+                        && !seen[k]
+                    {
+                        seen[k] = true;
+                        stack.push(j as usize);
                     }
                 }
             }
