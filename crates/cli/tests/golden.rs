@@ -150,6 +150,10 @@ fn refined_lattice_pipeline_is_unchanged_on_every_example() {
 #[test]
 fn lattice_pipeline_is_unchanged_on_every_example() {
     for name in EXAMPLES {
-        check(name, "lattice", &["--types", "square", "--frame", "axis", "--no-refine"]);
+        check(
+            name,
+            "lattice",
+            &["--types", "square", "--frame", "axis", "--no-refine"],
+        );
     }
 }

@@ -16,6 +16,11 @@ use crate::{Primitive, Shape};
 /// one cell of its last point.
 pub const OUTLINE_CELLS_PER_SPACING: f64 = 3.0;
 
+/// Angular sectors of a tube: a cylinder candidate's samples are kept in the sectors
+/// (and their neighbours) that hold its segment's points, so that the back of a
+/// cylinder seen from one side is not charged as surface with no data (10° sectors).
+pub const TUBE_SECTORS: usize = 36;
+
 /// Points probed for a segment's median spacing.
 const SPACING_PROBES: usize = 500;
 
@@ -92,4 +97,42 @@ fn plane_parts(
         .into_iter()
         .map(|shape| Primitive::new(Shape::Plane(shape), pose))
         .collect()
+}
+
+/// The samples (scene coordinates, about `spacing` apart) by which a candidate is judged:
+/// all of a plane's or a sphere's; of a cylinder, those in the angular sectors around
+/// its axis where its segment's points (`segment` indices into `points`) lie, with one
+/// sector of margin ([`TUBE_SECTORS`]). Never empty for a valid primitive.
+pub fn supported_samples(
+    primitive: &Primitive,
+    segment: &[usize],
+    points: &[Point3<f64>],
+    spacing: f64,
+) -> Vec<Point3<f64>> {
+    let local = primitive.shape.sample_surface(spacing);
+    let kept: Vec<Point3<f64>> = match primitive.shape {
+        Shape::Cylinder { .. } => {
+            let sector = |p: &Point3<f64>| {
+                let t = p.y.atan2(p.x).rem_euclid(std::f64::consts::TAU);
+                ((t / std::f64::consts::TAU * TUBE_SECTORS as f64) as usize).min(TUBE_SECTORS - 1)
+            };
+            let mut occupied = [false; TUBE_SECTORS];
+            for &i in segment {
+                occupied[sector(&primitive.pose.to_local(&points[i]))] = true;
+            }
+            let near = |k: usize| {
+                occupied[k]
+                    || occupied[(k + 1) % TUBE_SECTORS]
+                    || occupied[(k + TUBE_SECTORS - 1) % TUBE_SECTORS]
+            };
+            local.iter().filter(|p| near(sector(p))).copied().collect()
+        }
+        _ => local,
+    };
+    let kept = if kept.is_empty() {
+        primitive.shape.sample_surface(spacing)
+    } else {
+        kept
+    };
+    kept.iter().map(|p| primitive.pose.to_scene(p)).collect()
 }

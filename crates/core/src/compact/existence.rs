@@ -4,17 +4,18 @@
 //! The loss minimised is `L(p) + Σ_i p_i c_i` with `c_i` the description length of
 //! candidate `i` ([`super::mdl`]): linear in `p` like the primitive term, so it enters as
 //! `g_i ← g_i + c_i / w_prim` and the L-BFGS, thresholding and polish of [`crate::solve`]
-//! run unchanged. The dominance pruning ([`Coefficients::build_reduced`]) is computed on
-//! the plain `g`; a larger `g` only strengthens its proof, so it stays exact.
+//! run unchanged. The primitive term is summed over each candidate's *supported* samples
+//! (the caller's choice: of a tube, the sectors its points lie in), the point term over
+//! the candidates' exact surfaces. Proposed candidates are few, so no dominance pruning.
 
 use nalgebra::Point3;
 
+use super::geometry::Supported;
+use crate::chamfer::LossValue;
 use crate::chamfer::{ChamferOptions, Coefficients};
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
-use crate::chamfer::LossValue;
 use crate::solve::{Solution, SolverOptions, solve};
-use crate::spatial::PointIndex;
 use crate::{Primitive, Result, check};
 
 /// What [`decide_existence`] found for each candidate, in the candidates' order.
@@ -43,19 +44,22 @@ pub struct ExistenceOptions {
     pub solver: SolverOptions,
 }
 
-/// Decides which of `candidates` exist for `points` (indexed by `index`), each candidate
-/// charged its description length `cost[i]` (squared scene units).
+/// Decides which candidates exist for `points`: candidate `i` is
+/// given by its surface samples `samples[i]` (scene coordinates, about
+/// `options.sample_spacing` apart; at least one) and charged its description length
+/// `cost[i]` (squared scene units).
 pub fn decide_existence(
     points: &[Point3<f64>],
-    index: &PointIndex,
     candidates: &[Primitive],
+    samples: &[Vec<Point3<f64>>],
     cost: &[f64],
     options: &ExistenceOptions,
     progress: &dyn Progress,
 ) -> Result<Existence> {
     check::same_len("costs", cost.len(), "candidates", candidates.len())?;
+    check::same_len("sample sets", samples.len(), "candidates", candidates.len())?;
     let chamfer = &options.chamfer;
-    let n = candidates.len();
+    let n = samples.len();
     let point = points.len() as f64 * chamfer.cap;
     let nothing = LossValue {
         primitive: 0.0,
@@ -70,24 +74,24 @@ pub fn decide_existence(
             solution: Solution::nothing(0, nothing),
         });
     }
+    // A candidate whose samples are a part of its surface is judged by them for both
+    // terms; every other by its exact surface (`geometry.rs`).
     let set = CandidateSet::from_primitives(candidates, options.sample_spacing)?;
-    let reduced = Coefficients::build_reduced(points, index, &set, chamfer, progress)?;
-    let mut coefficients = reduced.coefficients;
-    for (k, &i) in reduced.kept.iter().enumerate() {
-        coefficients.g[k] += cost[i] / chamfer.primitive_weight;
+    let by_samples: Vec<bool> = candidates
+        .iter()
+        .zip(samples)
+        .map(|(c, s)| s.len() < c.sample_surface(options.sample_spacing).len())
+        .collect();
+    let geometry = Supported::new(set, samples, by_samples)?;
+    let mut coefficients = Coefficients::build(points, &geometry, chamfer, progress)?;
+    for (g, c) in coefficients.g.iter_mut().zip(cost) {
+        *g += c / chamfer.primitive_weight;
     }
+    let kept: Vec<usize> = (0..n).collect();
     let mut exists = vec![false; n];
     let mut probability = vec![0.0; n];
-    if reduced.kept.is_empty() {
-        return Ok(Existence {
-            exists,
-            probability,
-            loss: nothing.total,
-            solution: Solution::nothing(n, nothing),
-        });
-    }
     let mut solution = solve(&coefficients, &options.solver, progress)?;
-    for (k, &i) in reduced.kept.iter().enumerate() {
+    for (k, &i) in kept.iter().enumerate() {
         exists[i] = solution.exists[k];
         probability[i] = solution.probability[k];
     }
@@ -106,10 +110,16 @@ mod tests {
     use nalgebra::{UnitQuaternion, Vector3};
 
     use super::*;
+
     use crate::chamfer::Evaluator;
     use crate::compact::mdl::primitive_cost;
+    use crate::lattice::CandidateSet;
     use crate::progress::Silent;
-    use crate::{Pose, Shape};
+    use crate::{Pose, Primitive, Shape};
+
+    fn samples_of(cands: &[Primitive], spacing: f64) -> Vec<Vec<Point3<f64>>> {
+        cands.iter().map(|p| p.sample_surface(spacing)).collect()
+    }
 
     fn square(side: f64, x: f64, y: f64) -> Primitive {
         let pose = Pose::new(UnitQuaternion::identity(), Vector3::new(x, y, 0.0));
@@ -155,7 +165,7 @@ mod tests {
     #[test]
     fn one_large_primitive_beats_its_four_quarters_and_is_the_brute_force_minimum() {
         let points = unit_square_points();
-        let index = PointIndex::new(&points);
+
         let cands = candidates();
         let noise = 0.001;
         let cost: Vec<f64> = cands
@@ -163,14 +173,23 @@ mod tests {
             .map(|p| primitive_cost(p, noise, points.len()))
             .collect();
         let o = options();
-        let e = decide_existence(&points, &index, &cands, &cost, &o, &Silent).unwrap();
+        let samples = samples_of(&cands, o.sample_spacing);
+        let e = decide_existence(&points, &cands, &samples, &cost, &o, &Silent).unwrap();
         assert_eq!(e.exists, [true, false, false, false, false, false]);
 
         // Brute force over all 2^6 scenes of the loss with the description lengths.
+        // The point term from the candidates' surfaces; the primitive term summed by
+        // brute force over every (sample, point) pair.
         let set = CandidateSet::from_primitives(&cands, o.sample_spacing).unwrap();
         let mut coefficients = Coefficients::build(&points, &set, &o.chamfer, &Silent).unwrap();
-        for (g, c) in coefficients.g.iter_mut().zip(&cost) {
-            *g += c;
+        for ((g, c), s) in coefficients.g.iter_mut().zip(&cost).zip(&samples) {
+            let nearest = |x: &Point3<f64>| {
+                points
+                    .iter()
+                    .map(|y| (x - y).norm_squared())
+                    .fold(f64::INFINITY, f64::min)
+            };
+            *g = s.iter().map(nearest).sum::<f64>() + c;
         }
         let mut eval = Evaluator::new(&coefficients);
         let values: Vec<f64> = (0..1u32 << cands.len())
@@ -191,10 +210,11 @@ mod tests {
         // The same scene at zero cost: the whole square and its quarters tie up to
         // sampling, so the decision rests on the description length alone.
         let points = unit_square_points();
-        let index = PointIndex::new(&points);
+
         let cands = candidates();
         let zero = vec![0.0; cands.len()];
-        let e = decide_existence(&points, &index, &cands, &zero, &options(), &Silent).unwrap();
+        let samples = samples_of(&cands, options().sample_spacing);
+        let e = decide_existence(&points, &cands, &samples, &zero, &options(), &Silent).unwrap();
         assert!(!e.exists[5], "a square with no points near never exists");
         let whole = e.exists[0] as usize;
         let quarters = e.exists[1..5].iter().filter(|&&x| x).count();
@@ -204,8 +224,8 @@ mod tests {
     #[test]
     fn no_candidates_costs_the_cap_per_point() {
         let points = unit_square_points();
-        let index = PointIndex::new(&points);
-        let e = decide_existence(&points, &index, &[], &[], &options(), &Silent).unwrap();
+
+        let e = decide_existence(&points, &[], &[], &[], &options(), &Silent).unwrap();
         assert!(e.exists.is_empty());
         assert!((e.loss - points.len() as f64 * 0.01).abs() < 1e-9);
     }

@@ -12,10 +12,13 @@
 
 mod candidates;
 mod existence;
+mod geometry;
 mod mdl;
 mod model;
 
-pub use candidates::{OUTLINE_CELLS_PER_SPACING, Proposal, propose};
+pub use candidates::{
+    OUTLINE_CELLS_PER_SPACING, Proposal, TUBE_SECTORS, propose, supported_samples,
+};
 pub use existence::{Existence, ExistenceOptions, decide_existence};
 pub use mdl::{description_length, primitive_cost};
 pub use model::{

@@ -3,8 +3,9 @@
 use std::time::Instant;
 
 use nalgebra::Point3;
+use rayon::prelude::*;
 
-use super::candidates::{Proposal, propose};
+use super::candidates::{Proposal, propose, supported_samples};
 use super::existence::{ExistenceOptions, decide_existence};
 use super::mdl::primitive_cost;
 use crate::chamfer::ChamferOptions;
@@ -112,10 +113,17 @@ pub fn compact_model(
         },
         solver: options.solver.clone(),
     };
+    let samples: Vec<Vec<Point3<f64>>> = proposals
+        .par_iter()
+        .map(|p| {
+            let segment = &detection.segments[p.segment].points;
+            supported_samples(&p.primitive, segment, points, sample_spacing)
+        })
+        .collect();
     let decision = decide_existence(
         points,
-        index,
         &candidates,
+        &samples,
         &cost,
         &existence_options,
         progress,
