@@ -111,7 +111,7 @@ fn sizes(s: &Shape) -> Vec<f64> {
         Shape::Square { side } => vec![side],
         Shape::Cylinder { length, radius } => vec![length, radius],
         Shape::Elbow { bend, radius } => vec![bend, radius],
-        Shape::Mesh(_) => vec![],
+        Shape::Mesh(_) | Shape::Plane(_) => vec![],
     }
 }
 

@@ -93,7 +93,7 @@ mod tests {
     #[test]
     fn positions_in_options_move_with_the_cloud() {
         let d = Vector3::new(100.0, 200.0, 3.0);
-        let axis = shifted_options(&FitOptions::default(), d);
+        let axis = shifted_options(&FitOptions::lattice(), d);
         assert_eq!(axis.origin, Some(Point3::new(-100.0, -200.0, -3.0)));
         let given = FitOptions {
             origin: Some(Point3::new(101.0, 202.0, 3.5)),
