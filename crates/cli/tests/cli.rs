@@ -370,7 +370,7 @@ fn written_ply_files_are_binary_by_default_ascii_on_request_and_read_back() {
     assert!(ply_header(&dir.join("asc.ply")).contains("format ascii 1.0"));
 
     // Both encodings of the same scene hold the same points: the fits agree exactly.
-    let flags = ["--size", "1", "--spacing", "0.5", "-q"];
+    let flags = ["--types", "square", "--size", "1", "--spacing", "0.5", "-q"];
     let mut a = vec!["fit", "bin.ply", "-o", "bin.json", "--mesh", "bin-mesh.ply"];
     a.extend(flags);
     ok(&dir, &a);

@@ -10,10 +10,11 @@ use super::existence::{ExistenceOptions, decide_existence};
 use super::mdl::primitive_cost;
 use crate::chamfer::ChamferOptions;
 use crate::detect::{DetectOptions, Detection, detect};
+use crate::error::{Remedy, Unit};
 use crate::progress::Progress;
 use crate::solve::{Solution, SolverOptions};
 use crate::spatial::PointIndex;
-use crate::{Primitive, Result};
+use crate::{Error, Primitive, Result};
 
 /// The distance (in noise σ) within which a point counts as explained by a surface:
 /// `cap = max(CAP_SIGMAS σ, CAP_SPACINGS s)`, with `d_cap = cap²` the cost of an
@@ -33,6 +34,10 @@ pub const SAMPLE_SPACINGS: f64 = 1.0;
 /// disjoint surfaces, so a point lies near a handful at most.
 pub const EXISTENCE_BETA: usize = 8;
 
+/// The most candidate samples a compact model may plan (about 12 bytes of coefficients
+/// and 24 of samples each): 20 million, a few hundred MiB.
+pub const MAX_CANDIDATE_SAMPLES: f64 = 2e7;
+
 /// Options of [`compact_model`]; every `None` is derived from the data.
 #[derive(Debug, Clone, Default)]
 pub struct CompactOptions {
@@ -43,6 +48,8 @@ pub struct CompactOptions {
     pub cap: Option<f64>,
     /// Spacing of candidate samples (scene units); default the point spacing `s`.
     pub sample_spacing: Option<f64>,
+    /// Weights of the primitive and the point term (`None`: 1 and 1).
+    pub weights: Option<[f64; 2]>,
     /// The solver of the existence decision.
     pub solver: SolverOptions,
 }
@@ -99,6 +106,17 @@ pub fn compact_model(
         .unwrap_or((CAP_SIGMAS * noise).max(CAP_SPACINGS * spacing));
     let sample_spacing = options.sample_spacing.unwrap_or(SAMPLE_SPACINGS * spacing);
     let candidates: Vec<Primitive> = proposals.iter().map(|p| p.primitive.clone()).collect();
+    let planned: f64 =
+        candidates.iter().map(|c| c.area()).sum::<f64>() / (sample_spacing * sample_spacing);
+    if planned > MAX_CANDIDATE_SAMPLES {
+        return Err(Error::OverLimit {
+            what: format!("the candidates' samples at spacing {sample_spacing}"),
+            need: planned,
+            limit: MAX_CANDIDATE_SAMPLES,
+            unit: Unit::Count("samples"),
+            remedies: vec![Remedy::Raise("sample_spacing"), Remedy::Subsample],
+        });
+    }
     let cost: Vec<f64> = candidates
         .iter()
         .map(|p| primitive_cost(p, noise, points.len()))
@@ -109,10 +127,13 @@ pub fn compact_model(
             cap: cap * cap,
             surface_distance: true,
             beta: Some(EXISTENCE_BETA),
+            primitive_weight: options.weights.map_or(1.0, |w| w[0]),
+            point_weight: options.weights.map_or(1.0, |w| w[1]),
             ..Default::default()
         },
         solver: options.solver.clone(),
     };
+    existence_options.chamfer.validate()?;
     let samples: Vec<Vec<Point3<f64>>> = proposals
         .par_iter()
         .map(|p| {

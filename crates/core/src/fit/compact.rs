@@ -11,7 +11,7 @@ use crate::chamfer::ChamferOptions;
 use crate::compact::{CompactModel, CompactOptions, EXISTENCE_BETA, compact_model};
 use crate::progress::Progress;
 use crate::spatial::PointIndex;
-use crate::{PointCloud, Result, check};
+use crate::{Error, PointCloud, Result, check};
 
 /// The compact model of `cloud` under `options` (its `cap`, `sample_spacing`, `solver`,
 /// `seed` and `memory_budget` apply; the lattice options play no part).
@@ -21,6 +21,7 @@ pub(super) fn fit_compact(
     options: &FitOptions,
     progress: &dyn Progress,
 ) -> Result<FitResult> {
+    check_lattice_options_unset(options)?;
     if let Some(cap) = options.cap {
         check::non_negative("cap", cap)?;
     }
@@ -30,6 +31,7 @@ pub(super) fn fit_compact(
     let compact = CompactOptions {
         cap: options.cap,
         sample_spacing: options.sample_spacing,
+        weights: Some([options.primitive_weight, options.point_weight]),
         solver: options.solver.clone(),
         ..Default::default()
     };
@@ -54,6 +56,30 @@ pub(super) fn fit_compact(
     })
 }
 
+/// The lattice's own options have no meaning when the types come from the data: a value
+/// given for one is refused rather than silently ignored.
+fn check_lattice_options_unset(options: &FitOptions) -> Result<()> {
+    let expected = "unset: with the types detected from the data (auto) the sizes and \
+                    positions come from the data; name lattice types to set it";
+    let lengths = [
+        ("size", options.size),
+        ("radius", options.radius),
+        ("bend", options.bend),
+        ("spacing", options.spacing),
+    ];
+    if let Some((name, Some(v))) = lengths.iter().find(|(_, v)| v.is_some()) {
+        return Err(Error::out_of_range(*name, v, expected));
+    }
+    if let Some(o) = options.origin {
+        return Err(Error::out_of_range(
+            "origin",
+            format!("{:?}", o.coords.as_slice()),
+            expected,
+        ));
+    }
+    Ok(())
+}
+
 /// The settings a compact model was made with.
 fn compact_settings(options: &FitOptions, model: &CompactModel) -> Settings {
     let detection = &model.detection;
@@ -61,6 +87,8 @@ fn compact_settings(options: &FitOptions, model: &CompactModel) -> Settings {
         cap: model.cap * model.cap,
         surface_distance: true,
         beta: Some(EXISTENCE_BETA),
+        primitive_weight: options.primitive_weight,
+        point_weight: options.point_weight,
         ..Default::default()
     };
     Settings {
