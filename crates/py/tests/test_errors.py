@@ -161,7 +161,7 @@ def test_fit_errors():
     with pytest.raises(ValueError, match="mesh"):
         primfit.fit(cloud, types="mesh")
     with pytest.raises(ValueError, match="too large"):
-        primfit.fit(cloud, size=0.5, memory_budget=10)
+        primfit.fit(cloud, types="square", size=0.5, memory_budget=10)
     with pytest.raises(TypeError):
         primfit.fit(cloud, sizes=1.0)  # unknown option
 
