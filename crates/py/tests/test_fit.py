@@ -232,3 +232,26 @@ def test_mcmc_on_a_scanned_dict_as_read_ply_returns(tmp_path):
     s = result.settings
     assert s["method"] == "mcmc" and s["mcmc"]["steps"] == 500 and s["ray"]["sigma"] == 0.02
     assert "beta" not in s and result.primitives
+
+
+def test_fit_result_reads_back_from_json(tmp_path):
+    result = primfit.fit(corner(), size=1.0, **LATTICE)
+    for source in (result.to_json(), json.loads(result.to_json())):
+        back = primfit.FitResult.from_json(source)
+        assert back.primitives == result.primitives
+        assert (back.settings, back.metrics) == (result.settings, result.metrics)
+        np.testing.assert_array_equal(back.existence, result.existence)
+        assert json.loads(back.to_json()) == json.loads(result.to_json())
+    # A result the CLI wrote, with its extra settings (the scene), reads back as it is.
+    cli = cli_binary()
+    scene, out = tmp_path / "corner.ply", tmp_path / "result.json"
+    primfit.write_ply(scene, corner())
+    run = subprocess.run([str(cli), "fit", str(scene), "-o", str(out), "--size", "1", "--quiet"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    from_cli = primfit.FitResult.from_json(out.read_text())
+    assert from_cli.settings["scene"] == str(scene) and len(from_cli) == len(json.loads(out.read_text())["primitives"])
+    with pytest.raises(ValueError, match="settings"):
+        primfit.FitResult.from_json({"settings": {}, "metrics": {}, "primitives": []})
+    with pytest.raises(ValueError, match="JSON"):
+        primfit.FitResult.from_json("{")

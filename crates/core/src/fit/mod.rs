@@ -12,7 +12,8 @@
 //! | re-aligned pass | `mod.rs` | with an estimated frame and refinement: the lattice re-aligned to the first pass's primitives, then pass and gaps again |
 //! | pick | `mod.rs` | of the two passes, the one with the lower [`binary_chamfer`] |
 //!
-//! What comes out is a [`FitResult`] (`result.rs`: stats, `result.json`, mesh). The
+//! What comes out is a [`FitResult`] (`result.rs`: stats, `result.json`, mesh; the JSON
+//! schema is [`document`]). The
 //! ray-likelihood method of thesis ch. 4 ([`MethodOptions::Mcmc`]) is a separate
 //! pipeline over the same settings (`mcmc.rs`).
 //!
@@ -35,6 +36,7 @@
 //! | refinement | on ([`crate::refine::RefineOptions::default`]) |
 
 mod budget;
+pub mod document;
 mod gaps;
 mod mcmc;
 mod options;

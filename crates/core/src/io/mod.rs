@@ -41,6 +41,7 @@
 //! existing one. [`write_json_atomic`] does the same for JSON values.
 
 mod atomic;
+pub mod json;
 mod palette;
 mod ply;
 
