@@ -29,7 +29,7 @@ pub struct FitStats {
     pub bytes_per_entry: usize,
     /// Bytes held by the coefficients.
     pub coefficient_bytes: usize,
-    /// The peak estimate checked against the memory budget ([`estimate_bytes`]).
+    /// The peak estimate checked against the memory budget ([`super::estimate_bytes`]).
     pub estimated_bytes: u64,
     /// Seconds spent building the lattice.
     pub lattice_seconds: f64,
@@ -47,7 +47,7 @@ pub struct FitStats {
     pub filled: usize,
 }
 
-/// The result of [`fit`].
+/// The result of [`super::fit`].
 #[derive(Debug, Clone)]
 pub struct FitResult {
     /// Settings used.

@@ -63,7 +63,7 @@ pub struct Settings {
     pub solver: SolverOptions,
     /// Seed.
     pub seed: u64,
-    /// Budget for the estimated peak memory of a fit, bytes ([`estimate_bytes`]).
+    /// Budget for the estimated peak memory of a fit, bytes ([`super::estimate_bytes`]).
     pub memory_budget: u64,
     /// Mesh source, if the mesh type is used.
     pub mesh: Option<MeshShape>,

@@ -210,7 +210,8 @@ impl RegisterOptions {
             })
     }
 
-    /// The options as JSON (the `settings` of `result.json`, [`SettingsDoc`]).
+    /// The options as JSON (the `settings` of `result.json`: every option, the screen
+    /// resolved, and `"method": "particle_filter"`).
     pub fn to_json(&self) -> Value {
         let t = &self.fixed_translation;
         let doc = SettingsDoc {
