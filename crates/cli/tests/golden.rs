@@ -1,7 +1,13 @@
-//! Golden outputs: `primfit fit` on every bundled example, with the default pipeline and
-//! with the plain lattice pipeline (`--frame axis --no-refine`), must give the primitives
-//! and measures recorded in `tests/golden/` (timings aside). The files were recorded
-//! before the pipeline was restructured; a change of behaviour shows up here.
+//! Golden outputs: `primfit fit` on every bundled example must give the primitives and
+//! measures recorded in `tests/golden/` (timings aside), with three pipelines:
+//!
+//! - `auto`: no flags, the compact model (`--types auto`);
+//! - `refined`: the square lattice with the estimated frame and refinement
+//!   (`--types square`, the default before the compact model; recorded before the
+//!   pipeline was restructured);
+//! - `lattice`: the plain lattice (`--types square --frame axis --no-refine`).
+//!
+//! A change of behaviour shows up here.
 //!
 //! To re-record after a deliberate change of behaviour: `PRIMFIT_BLESS=1 cargo test -p
 //! primfit-cli --test golden`, and say why in the commit message.
@@ -130,13 +136,24 @@ fn check(name: &str, pipeline: &str, extra: &[&str]) {
 #[test]
 fn default_pipeline_is_unchanged_on_every_example() {
     for name in EXAMPLES {
-        check(name, "default", &[]);
+        check(name, "auto", &[]);
+    }
+}
+
+#[test]
+fn refined_lattice_pipeline_is_unchanged_on_every_example() {
+    for name in EXAMPLES {
+        check(name, "refined", &["--types", "square"]);
     }
 }
 
 #[test]
 fn lattice_pipeline_is_unchanged_on_every_example() {
     for name in EXAMPLES {
-        check(name, "lattice", &["--frame", "axis", "--no-refine"]);
+        check(
+            name,
+            "lattice",
+            &["--types", "square", "--frame", "axis", "--no-refine"],
+        );
     }
 }

@@ -116,6 +116,16 @@ pub enum Error {
         /// What is wrong with it.
         message: String,
     },
+    /// A file whose format is not one that is read, or whose content is not what its
+    /// extension says (a `.pcd` name on a LAS file).
+    UnknownFormat {
+        /// The file concerned.
+        path: PathBuf,
+        /// What was found (`the extension '.bin'`, `a '.pcd' name on LAS content`).
+        found: String,
+        /// The formats accepted, as a phrase.
+        accepted: &'static str,
+    },
     /// Any other invalid input, as a sentence (only where no variant above fits).
     InvalidArgument(String),
 }
@@ -271,6 +281,15 @@ impl Error {
             }
             Error::Io { path, source } => write!(f, "{}: {source}", path.display()),
             Error::Format { path, message } => write!(f, "{}: {message}", path.display()),
+            Error::UnknownFormat {
+                path,
+                found,
+                accepted,
+            } => write!(
+                f,
+                "{}: not a point cloud format that is read: {found} (accepted: {accepted})",
+                path.display()
+            ),
             Error::InvalidArgument(msg) => write!(f, "invalid argument: {msg}"),
         }
     }

@@ -13,9 +13,10 @@
 //!
 //! | module | concept |
 //! |---|---|
-//! | [`atlas`] | primitive *types*: local-frame surfaces (disk, square, cylinder, elbow, sphere, mesh) |
+//! | [`atlas`] | primitive *types*: local-frame surfaces (disk, square, cylinder, elbow, sphere, mesh, plane) |
 //! | [`primitive`] | a type placed in the scene by a [`primitive::Pose`] |
 //! | [`surface`] | local normals, flatness and noise level by PCA of k nearest neighbours |
+//! | [`detect`] | shape detection from the data: region growing, plane / cylinder / sphere segments |
 //! | [`frame`] | the lattice frame: the scan's dominant axes and a grid origin on the data |
 //! | [`lattice`] | the candidate set G = types × orientations × translation grid |
 //! | [`chamfer`] | the probabilistic chamfer distance: coefficients, value, gradient |
@@ -111,6 +112,8 @@ pub mod atlas;
 pub mod chamfer;
 pub mod check;
 pub mod cloud;
+pub mod compact;
+pub mod detect;
 pub mod error;
 pub mod fit;
 pub mod frame;

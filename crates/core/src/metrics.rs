@@ -106,10 +106,12 @@ fn scene_sizes(p: &Primitive) -> Vec<f64> {
         Shape::Cylinder { length, radius } => vec![length * s, radius * s],
         Shape::Elbow { bend, radius } => vec![bend * s, radius * s],
         Shape::Mesh(_) => vec![s],
+        Shape::Plane(p) => vec![p.area() * s * s],
     }
 }
 
-/// Same type and scene sizes within `1e-6` relative (meshes: same `source` and scale).
+/// Same type and scene sizes within `1e-6` relative (meshes: same `source` and scale;
+/// planes: same scene area).
 pub fn same_type_and_size(a: &Primitive, b: &Primitive) -> bool {
     let close = |x: f64, y: f64| (x - y).abs() <= 1e-6 * x.abs().max(y.abs());
     let meshes_agree = match (&a.shape, &b.shape) {

@@ -6,7 +6,7 @@ use nalgebra::{Point3, UnitQuaternion, Vector3};
 use serde::{Deserialize, Serialize};
 use serde_json::Value;
 
-use crate::atlas::{MeshShape, Shape, ShapeKind, TriMesh};
+use crate::atlas::{MeshShape, PlaneShape, Shape, ShapeKind, TriMesh};
 use crate::{Error, Result, check};
 
 /// A similarity transform from a shape's local frame to scene coordinates:
@@ -273,7 +273,9 @@ impl Primitive {
         Some(Hit { depth, normal })
     }
     /// Parses one DESIGN §3 primitive entry. `load_mesh` turns a mesh entry's `source`
-    /// into its mesh (e.g. by reading the PLY file it names).
+    /// into its mesh (e.g. by reading the PLY file it names). A `plane` entry carries its
+    /// polygon beside `size` and `pose`: `"outline": [[x, y], …]` and optionally
+    /// `"holes": [[[x, y], …], …]`, in its local frame (its `size` is ignored).
     pub fn from_json(
         v: &Value,
         load_mesh: &dyn Fn(&str) -> Result<MeshShape>,
@@ -312,21 +314,27 @@ impl Primitive {
                     .ok_or_else(|| Error::json("size.source", "the name of the mesh's PLY file"))?;
                 Shape::Mesh(load_mesh(source)?)
             }
+            ShapeKind::Plane => Shape::Plane(PlaneShape::from_rings_json(
+                v.get("outline"),
+                v.get("holes"),
+            )?),
         };
         shape.validate()?;
         let pose = Pose::from_json(v.get("pose").unwrap_or(&Value::Null))?;
         Ok(Primitive { shape, pose })
     }
 
-    /// DESIGN §3 JSON entry (without `existence`, which the caller adds).
+    /// DESIGN §3 JSON entry (without `existence`, which the caller adds); a plane adds
+    /// its `outline` and `holes` (local frame, see [`Primitive::from_json`]).
     pub fn to_json(&self) -> Value {
         serde_json::to_value(self).unwrap_or(Value::Null)
     }
 }
 
 impl Serialize for Primitive {
-    /// The DESIGN §3 entry: `type`, `size` (the shape's sizes), `pose`. Reading one back
-    /// needs a mesh loader: [`Primitive::from_json`].
+    /// The DESIGN §3 entry: `type`, `size` (the shape's sizes), `pose`, and for a plane
+    /// its `outline` and `holes`. Reading one back needs a mesh loader:
+    /// [`Primitive::from_json`].
     fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
         #[derive(Serialize)]
         struct Entry<'a> {
@@ -334,11 +342,24 @@ impl Serialize for Primitive {
             kind: &'static str,
             size: Value,
             pose: &'a Pose,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            outline: Option<Value>,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            holes: Option<Value>,
         }
+        let (outline, holes) = match &self.shape {
+            Shape::Plane(p) => {
+                let (outline, holes) = p.rings_json();
+                (Some(outline), Some(holes))
+            }
+            _ => (None, None),
+        };
         Entry {
             kind: self.shape.kind().name(),
             size: self.shape.sizes_json(),
             pose: &self.pose,
+            outline,
+            holes,
         }
         .serialize(s)
     }
@@ -364,7 +385,7 @@ fn numbers(v: Option<&Value>, n: usize, what: &str) -> Result<Vec<f64>> {
 /// along `dir` (local frame).
 fn local_normal(shape: &Shape, p: &Point3<f64>, dir: &Vector3<f64>) -> Vector3<f64> {
     match shape {
-        Shape::Disk { .. } | Shape::Square { .. } => Vector3::z(),
+        Shape::Disk { .. } | Shape::Square { .. } | Shape::Plane(_) => Vector3::z(),
         Shape::Cylinder { .. } => Vector3::new(p.x, p.y, 0.0),
         Shape::Sphere { .. } => p.coords,
         Shape::Elbow { bend, .. } => {
@@ -447,6 +468,57 @@ mod tests {
         assert_eq!(unscaled, Pose::identity());
         let zero = json!({"translation": [0, 0, 0], "rotation": [0, 0, 0, 0]});
         assert!(serde_json::from_value::<Pose>(zero).is_err());
+    }
+
+    #[test]
+    fn json_round_trip_of_a_plane() {
+        let p2 = |x: f64, y: f64| nalgebra::Point2::new(x, y);
+        let outline = vec![p2(-1.0, -0.5), p2(1.25, -0.5), p2(1.0, 0.75), p2(-1.0, 0.5)];
+        let hole = vec![p2(-0.2, -0.1), p2(0.1, -0.1), p2(0.1 / 3.0, 0.2)];
+        let shape = PlaneShape::new(outline, vec![hole]).unwrap();
+        let pose = Pose {
+            rotation: UnitQuaternion::from_euler_angles(0.1, -0.2, 0.3),
+            translation: Vector3::new(1.0, -2.0, 0.5),
+            scale: 1.5,
+        };
+        let p = Primitive::new(Shape::Plane(shape.clone()), pose);
+        let json = p.to_json();
+        assert_eq!(json["type"], "plane");
+        assert_eq!(json["outline"].as_array().unwrap().len(), 4);
+        assert_eq!(json["holes"][0].as_array().unwrap().len(), 3);
+        let text = serde_json::to_string(&json).unwrap();
+        let back = Primitive::from_json(&serde_json::from_str(&text).unwrap(), &|_| unreachable!())
+            .unwrap();
+        let Shape::Plane(b) = &back.shape else {
+            panic!("not a plane")
+        };
+        assert_eq!((b.outline(), b.holes()), (shape.outline(), shape.holes()));
+        let again = back.to_json();
+        for key in ["type", "size", "outline", "holes"] {
+            assert_eq!(again[key], json[key], "{key}");
+        }
+        assert!(back.pose.rotation.angle_to(&p.pose.rotation) < 1e-12);
+        let x = Point3::new(0.3, 0.2, -0.1);
+        assert!((back.distance(&x) - p.distance(&x)).abs() < 1e-12);
+        // Holes are optional; broken rings are errors.
+        let mut no_holes = json.clone();
+        no_holes.as_object_mut().unwrap().remove("holes");
+        assert!(Primitive::from_json(&no_holes, &|_| unreachable!()).is_ok());
+        for (field, bad) in [
+            ("outline", json!([[0, 0], [1, 1], [1, 0], [0, 1]])),
+            ("outline", json!([[0, 0], [1, 0]])),
+            ("outline", json!([[0, 0], [1, "x"], [1, 1]])),
+            ("outline", json!(null)),
+            ("holes", json!([[[5, 5], [6, 5], [6, 6]]])),
+            ("holes", json!(3)),
+        ] {
+            let mut v = json.clone();
+            v[field] = bad.clone();
+            assert!(
+                Primitive::from_json(&v, &|_| unreachable!()).is_err(),
+                "{field}: {bad}"
+            );
+        }
     }
 
     #[test]

@@ -11,6 +11,11 @@
 //!   best-fit plane (scene units): on a flat, noisy surface it estimates the noise σ
 //!   along the normal.
 //!
+//! The noise level of a sampled surface is floored at its resolution: [`noise_sigma`]
+//! is `max(σ_pca, s/√12)` with `s` the point spacing ([`noise_floor`] gives the
+//! derivation), so quantised depth, whose neighbourhoods are exactly planar, never
+//! reports σ = 0.
+//!
 //! Estimates are taken on an evenly strided subsample (every `⌈J / max_points⌉`-th point),
 //! so their cost does not grow with the scan; results are deterministic.
 
@@ -62,9 +67,24 @@ pub fn local_plane(
         .iter()
         .filter_map(|(i, _)| cloud.get(*i as usize).copied())
         .collect();
-    let n = neighbours.len() as f64;
-    let mean = neighbours.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
-    let cov = neighbours
+    let (normal, flatness, residual) = pca_plane(&neighbours)?;
+    Some(LocalPlane {
+        point: *point,
+        normal,
+        flatness,
+        residual,
+    })
+}
+
+/// The PCA plane of a set of points: `(unit normal, flatness, residual)` as in the
+/// module docs, or `None` when fewer than three points are given or they all coincide.
+pub fn pca_plane(points: &[Point3<f64>]) -> Option<(Vector3<f64>, f64, f64)> {
+    if points.len() < 3 {
+        return None;
+    }
+    let n = points.len() as f64;
+    let mean = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n;
+    let cov = points
         .iter()
         .map(|p| {
             let d = p.coords - mean;
@@ -85,12 +105,7 @@ pub fn local_plane(
     if !(norm.is_finite() && norm > 0.0) {
         return None;
     }
-    Some(LocalPlane {
-        point: *point,
-        normal: normal / norm,
-        flatness: lambda[0] / total,
-        residual: lambda[0].sqrt(),
-    })
+    Some((normal / norm, lambda[0] / total, lambda[0].sqrt()))
 }
 
 /// Local planes of at most `max_points` evenly strided points of `cloud`, `k` neighbours
@@ -123,6 +138,32 @@ pub fn noise_level(planes: &[LocalPlane]) -> Option<f64> {
     let mid = r.len() / 2;
     r.select_nth_unstable_by(mid, f64::total_cmp);
     Some(r[mid])
+}
+
+/// `1/√12`: the standard deviation of a uniform distribution of unit width.
+const UNIFORM_SD_PER_WIDTH: f64 = 0.288_675_134_594_812_9;
+
+/// The resolution floor of the noise level (scene units): `spacing / √12`.
+///
+/// **Why.** A sensor that samples a surface every `s` (the point spacing, scene units)
+/// cannot report where the surface lies between its samples more finely than `s`: a
+/// quantised depth sensor (Kinect-type) rounds the depth to steps of the same order as
+/// the lateral spacing at that range, and any resampling to a grid of pitch `s` does
+/// the same. The position error of rounding to a step `s` is uniform on `[−s/2, s/2]`,
+/// whose standard deviation is `s/√12`. So `s/√12` is the smallest σ a sampled surface
+/// can honestly claim, even where every neighbourhood is exactly planar (the local PCA
+/// of [`noise_level`] then gives `σ = 0`: quantised depth yields terraces that are
+/// perfectly flat between the steps).
+pub fn noise_floor(spacing: f64) -> f64 {
+    spacing.max(0.0) * UNIFORM_SD_PER_WIDTH
+}
+
+/// The floored noise level σ (scene units): `max(σ_pca, spacing/√12)`, with `σ_pca` the
+/// [`noise_level`] of `planes` and the floor [`noise_floor`] of the cloud's point
+/// `spacing` (median nearest-neighbour distance, [`crate::spatial::median_spacing`]).
+/// Never 0 for a positive spacing; the floor alone when `planes` is empty.
+pub fn noise_sigma(planes: &[LocalPlane], spacing: f64) -> f64 {
+    noise_level(planes).unwrap_or(0.0).max(noise_floor(spacing))
 }
 
 #[cfg(test)]
@@ -168,6 +209,39 @@ mod tests {
         let idx = PointIndex::new(&pts);
         let sigma = noise_level(&local_planes(&pts, &idx, 16, 1000)).unwrap();
         assert!((sigma - 0.01).abs() < 0.003, "σ = {sigma}");
+    }
+
+    #[test]
+    fn the_floor_keeps_exactly_planar_neighbourhoods_above_zero() {
+        // Exactly planar: σ_pca = 0, so σ is the floor of the 1/30 grid pitch.
+        let pts = tilted_plane(0.0);
+        let idx = PointIndex::new(&pts);
+        let planes = local_planes(&pts, &idx, 16, 500);
+        let spacing = crate::spatial::median_spacing(&pts, &idx, 1000).unwrap();
+        assert!((spacing - 1.0 / 30.0).abs() < 1e-9);
+        let sigma = noise_sigma(&planes, spacing);
+        assert!(
+            (sigma - spacing / 12f64.sqrt()).abs() < 1e-12,
+            "σ = {sigma}"
+        );
+        // Rounding to a step s spreads points uniformly over ±s/2: sd s/√12.
+        let s = 0.01;
+        let n = 100_000;
+        let var = (0..n)
+            .map(|i| {
+                let x = i as f64 * 0.000_737_1;
+                let e = x - (x / s).round() * s;
+                e * e
+            })
+            .sum::<f64>()
+            / n as f64;
+        assert!((var.sqrt() - noise_floor(s)).abs() < 1e-4 * s / 0.01);
+        // Noisier than the floor: the PCA estimate wins.
+        let noisy = tilted_plane(0.01);
+        let idx = PointIndex::new(&noisy);
+        let sigma = noise_sigma(&local_planes(&noisy, &idx, 16, 1000), 1.0 / 30.0);
+        assert!((sigma - 0.01).abs() < 0.003, "σ = {sigma}");
+        assert_eq!(noise_sigma(&[], 0.3), noise_floor(0.3));
     }
 
     #[test]

@@ -33,6 +33,7 @@ pub fn to_py(e: Error) -> PyErr {
         | Error::Missing { .. }
         | Error::Json { .. }
         | Error::Format { .. }
+        | Error::UnknownFormat { .. }
         | Error::InvalidArgument(_) => PyValueError::new_err(message),
         // Refused before allocating: the caller can shrink the problem.
         Error::OverLimit { .. } => PyValueError::new_err(message),

@@ -7,7 +7,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2}
 use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::chamfer::{CandidateGeometry, Coefficients, PointModel};
 use primfit_core::fit::{
-    self as core_fit, FitOptions, FitResult, McmcFitOptions, MethodOptions, Settings,
+    self as core_fit, FitOptions, FitResult, McmcFitOptions, MethodOptions, Settings, parse_types,
 };
 use primfit_core::frame::FrameChoice;
 use primfit_core::lattice::CandidateSet;
@@ -144,14 +144,12 @@ fn kinds(types: Option<&Bound<'_, PyAny>>) -> PyResult<Option<Vec<ShapeKind>>> {
             .map(|t| t?.extract::<String>())
             .collect::<PyResult<_>>()?,
     };
-    let kinds = names
+    let names: Vec<&str> = names
         .iter()
         .map(|t| t.trim())
         .filter(|t| !t.is_empty())
-        .map(ShapeKind::parse)
-        .collect::<Result<Vec<_>>>()
-        .py()?;
-    Ok(Some(kinds))
+        .collect();
+    Ok(Some(parse_types(&names).py()?))
 }
 
 /// `frame`: `"auto"`, `"axis"`, a dict `{"rotation": [w, x, y, z], "origin": [x, y, z]}`

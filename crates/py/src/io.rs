@@ -1,4 +1,6 @@
-//! PLY files: clouds in and out, meshes in, fitted primitives out as one mesh.
+//! Files: clouds in (every format `primfit_core::io::read_cloud` reads: PLY, PCD,
+//! LAS/LAZ, E57, XYZ/PTS/CSV text) and out (PLY), meshes in, fitted primitives out as
+//! one mesh.
 
 use std::path::PathBuf;
 
@@ -39,8 +41,10 @@ fn triples<T: Copy>(name: &str, a: ArrayView2<'_, T>, rows: usize) -> PyResult<V
     Ok(a.axis_iter(Axis(0)).map(|r| [r[0], r[1], r[2]]).collect())
 }
 
-/// Reads a PLY point cloud: a dict with `points` (J, 3) and, when the file has them,
-/// `normals` (J, 3), `colors` (J, 3) uint8, `labels` (J,) int32, `sensors` (J, 3).
+/// Reads a point cloud of any format `primfit_core::io::read_cloud` reads (by extension:
+/// PLY, PCD, LAS/LAZ, E57, XYZ/PTS/CSV text): a dict with `points` (J, 3) and, when the
+/// file has them, `normals` (J, 3), `colors` (J, 3) uint8, `labels` (J,) int32,
+/// `sensors` (J, 3).
 #[pyfunction]
 pub fn read_ply<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Bound<'py, PyDict>> {
     let cloud = pool::detached(py, || io::read_cloud(&path))?.py()?;

@@ -88,3 +88,29 @@ def test_bad_primitives_for_write_mesh(tmp_path):
             [{"type": "mesh", "size": {"source": str(tmp_path / "missing.ply")},
               "pose": {"translation": [0, 0, 0], "rotation": [1, 0, 0, 0]}}],
         )
+
+
+def test_read_ply_reads_every_cloud_format_through_the_rust_reader(tmp_path):
+    """PCD (ascii, binary), XYZ, CSV and PTS of one cloud read the same points; a wrong
+    extension or a truncated file raises ValueError naming the file."""
+    rng = np.random.default_rng(1)
+    points = (rng.integers(-64, 64, size=(50, 3)) / 16.0).astype(np.float64)  # exact in float32
+    primfit.write_ply(tmp_path / "p.ply", points)
+    head = (
+        "VERSION 0.7\nFIELDS x y z\nSIZE 4 4 4\nTYPE F F F\nCOUNT 1 1 1\n"
+        f"WIDTH {len(points)}\nHEIGHT 1\nPOINTS {len(points)}\n"
+    )
+    (tmp_path / "a.pcd").write_text(head + "DATA ascii\n" + "".join(f"{x} {y} {z}\n" for x, y, z in points))
+    (tmp_path / "b.pcd").write_bytes((head + "DATA binary\n").encode() + points.astype("<f4").tobytes())
+    (tmp_path / "c.xyz").write_text("".join(f"{x}\t{y}\t{z}\n" for x, y, z in points))
+    (tmp_path / "d.csv").write_text("x,y,z,i\n" + "".join(f"{x},{y},{z},1\n" for x, y, z in points))
+    (tmp_path / "e.PTS").write_text(f"{len(points)}\n" + "".join(f"{x} {y} {z} 7\n" for x, y, z in points))
+    for name in ["p.ply", "a.pcd", "b.pcd", "c.xyz", "d.csv", "e.PTS"]:
+        back = primfit.read_ply(tmp_path / name)
+        np.testing.assert_array_equal(back["points"], points, err_msg=name)
+    (tmp_path / "scan.obj").write_text("v 1 2 3\n")
+    with pytest.raises(ValueError, match=r"scan\.obj.*accepted: PLY \(\.ply\), PCD \(\.pcd\)"):
+        primfit.read_ply(tmp_path / "scan.obj")
+    (tmp_path / "cut.pcd").write_bytes((head + "DATA binary\n").encode() + b"\0" * 10)
+    with pytest.raises(ValueError, match=r"cut\.pcd.*truncated file or corrupt count"):
+        primfit.read_ply(tmp_path / "cut.pcd")

@@ -6,8 +6,8 @@ use anyhow::{Context, Result, bail};
 use clap::Args;
 use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::fit::{
-    DEFAULT_FRAME, DEFAULT_KIND, DEFAULT_MAX_ITERATIONS, DEFAULT_PRIOR, DEFAULT_SEARCH_POINTS,
-    DEFAULT_SEED, FitOptions, McmcFitOptions, MethodOptions, fit,
+    AUTO_TYPES, DEFAULT_FRAME, DEFAULT_MAX_ITERATIONS, DEFAULT_PRIOR, DEFAULT_SEARCH_POINTS,
+    DEFAULT_SEED, FitOptions, McmcFitOptions, MethodOptions, fit, parse_types,
 };
 use primfit_core::frame::FrameChoice;
 use primfit_core::io::{self, Encoding};
@@ -44,8 +44,11 @@ pub struct FitArgs {
     /// Write PLY output as ascii instead of binary little-endian.
     #[arg(long)]
     pub ascii: bool,
-    /// Primitive types: comma-separated from square, disk, cylinder, elbow, sphere, mesh.
-    #[arg(long, value_delimiter = ',', default_value = DEFAULT_KIND.name())]
+    /// Primitive types: `auto` (the compact model: planes with outlines, cylinders and
+    /// spheres detected in the data, kept by the probabilistic chamfer with a
+    /// description length per primitive; the lattice options below play no part), or a
+    /// comma-separated lattice from square, disk, cylinder, elbow, sphere, mesh.
+    #[arg(long, value_delimiter = ',', default_value = AUTO_TYPES)]
     pub types: Vec<String>,
     /// Candidate sizes.
     #[command(flatten)]
@@ -133,15 +136,7 @@ pub struct FitArgs {
 impl FitArgs {
     /// Translates the flags into library options.
     fn options(&self) -> Result<FitOptions> {
-        let kinds = self
-            .types
-            .iter()
-            .map(|t| ShapeKind::parse(t.trim()))
-            .collect::<Result<Vec<_>, _>>()
-            .context("--types")?;
-        if kinds.is_empty() {
-            bail!("--types needs at least one primitive type");
-        }
+        let kinds = parse_types(&self.types).context("--types")?;
         let mesh = match (&self.mesh_model, kinds.contains(&ShapeKind::Mesh)) {
             (Some(path), _) => {
                 let m = io::read_mesh(path)?;

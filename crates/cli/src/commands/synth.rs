@@ -352,7 +352,10 @@ fn rescan(mut scene: Scene, frames: usize, a: &SynthArgs) -> Result<Scene> {
         .iter()
         .map(|p| {
             let n = p.pose.rotation * Vector3::z();
-            let flat = matches!(p.shape.kind(), ShapeKind::Square | ShapeKind::Disk);
+            let flat = matches!(
+                p.shape.kind(),
+                ShapeKind::Square | ShapeKind::Disk | ShapeKind::Plane
+            );
             match (flat, n.z.abs()) {
                 (true, c) if c > 0.9 && p.center().z <= lo.z + 1e-6 => 1,
                 (true, c) if c < 1e-6 => 2,

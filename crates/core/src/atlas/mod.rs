@@ -18,12 +18,19 @@
 //! | `Elbow { bend, radius }` | a quarter torus: tube of radius `radius` around the centre-line arc of radius `bend` in the plane z = 0, from (bend, 0, 0) (tangent +y) to (0, bend, 0) (tangent −x); open ends |
 //! | `Sphere { diameter }` | the sphere of radius `diameter/2` centred at the origin |
 //! | `Mesh(MeshShape)` | a triangle mesh in its own coordinates |
+//! | `Plane(PlaneShape)` | a polygon (outer ring, optional holes) in the plane z = 0, normal +z; built from points with [`PlaneShape::from_points`] or [`fit_plane`] |
 
 mod bvh;
 mod elbow;
 mod mesh;
 mod numeric;
+mod occupancy;
+mod outline;
 mod planar;
+mod plane;
+mod plane_fit;
+#[cfg(test)]
+mod plane_tests;
 mod shapes;
 mod size;
 mod sphere;
@@ -33,5 +40,8 @@ mod trimesh;
 mod tube;
 
 pub use mesh::MeshShape;
+pub use occupancy::{MAX_OUTLINE_CELLS, MIN_COMPONENT_CELLS, MIN_HOLE_CELLS};
+pub use plane::{MAX_PLANE_VERTICES, PlaneShape};
+pub use plane_fit::{fit_plane, fit_plane_primitive, plane_frame};
 pub use shapes::*;
 pub use trimesh::TriMesh;

@@ -126,7 +126,7 @@ pub(super) fn square_ray(side: f64, o: &Point3<f64>, d: &Vector3<f64>) -> Option
 /// Ray against a flat patch of the plane z = 0. A ray crossing the plane hits where
 /// `z = 0` if `inside(x, y)`; a ray lying in the plane (`o.z = d.z = 0`) is handed to
 /// `in_plane` with its 2-D origin and direction.
-fn plane_ray(
+pub(super) fn plane_ray(
     o: &Point3<f64>,
     d: &Vector3<f64>,
     inside: impl Fn(f64, f64) -> bool,

@@ -10,7 +10,7 @@ use super::planar::{disk_closest, disk_mesh, disk_ray, disk_sample};
 use super::planar::{square_closest, square_mesh, square_ray, square_sample};
 use super::sphere::{sphere_closest, sphere_mesh, sphere_ray, sphere_sample};
 use super::tube::{cylinder_closest, cylinder_mesh, cylinder_ray, cylinder_sample};
-use super::{MeshShape, TriMesh};
+use super::{MeshShape, PlaneShape, TriMesh};
 use crate::{Error, Result, check};
 
 /// The name of a primitive type, as used on the command line and in JSON.
@@ -28,17 +28,20 @@ pub enum ShapeKind {
     Sphere,
     /// Arbitrary triangle mesh.
     Mesh,
+    /// Bounded planar polygon (outline and holes from the points it explains).
+    Plane,
 }
 
 impl ShapeKind {
     /// All kinds, in a fixed order.
-    pub const ALL: [ShapeKind; 6] = [
+    pub const ALL: [ShapeKind; 7] = [
         ShapeKind::Disk,
         ShapeKind::Square,
         ShapeKind::Cylinder,
         ShapeKind::Elbow,
         ShapeKind::Sphere,
         ShapeKind::Mesh,
+        ShapeKind::Plane,
     ];
 
     /// The lowercase name used on the CLI and in JSON (`"square"`, …).
@@ -50,6 +53,7 @@ impl ShapeKind {
             ShapeKind::Elbow => "elbow",
             ShapeKind::Sphere => "sphere",
             ShapeKind::Mesh => "mesh",
+            ShapeKind::Plane => "plane",
         }
     }
 
@@ -61,7 +65,7 @@ impl ShapeKind {
             .ok_or_else(|| Error::Unknown {
                 what: "primitive type",
                 value: name.into(),
-                expected: "disk, square, cylinder, elbow, sphere or mesh",
+                expected: "disk, square, cylinder, elbow, sphere, mesh or plane",
             })
     }
 }
@@ -106,6 +110,8 @@ pub enum Shape {
     },
     /// Arbitrary triangle mesh.
     Mesh(MeshShape),
+    /// Bounded planar polygon in z = 0 (see [`PlaneShape`]).
+    Plane(PlaneShape),
 }
 
 impl Shape {
@@ -118,11 +124,13 @@ impl Shape {
             Shape::Elbow { .. } => ShapeKind::Elbow,
             Shape::Sphere { .. } => ShapeKind::Sphere,
             Shape::Mesh(_) => ShapeKind::Mesh,
+            Shape::Plane(_) => ShapeKind::Plane,
         }
     }
 
     /// Checks that every size is finite and positive (and an elbow's tube fits inside its
-    /// bend: `radius < bend`), and that a mesh has at least one non-degenerate face.
+    /// bend: `radius < bend`), that a mesh has at least one non-degenerate face and a
+    /// plane a positive area (its rings were checked when it was built).
     pub fn validate(&self) -> Result<()> {
         let positive = |size: &str, v: f64| check::positive(&format!("{} {size}", self.kind()), v);
         match self {
@@ -149,11 +157,13 @@ impl Shape {
                 }
                 Ok(())
             }
+            Shape::Plane(p) => positive("area", p.area()),
         }
     }
 
     /// The sizes as the JSON object of DESIGN §3 (`{"side": 1.0}`, `{"length": …, "radius": …}`,
-    /// `{"source": "…"}` for meshes).
+    /// `{"source": "…"}` for meshes, `{"area": …}` for planes, whose rings are written by
+    /// [`crate::Primitive::to_json`] beside the sizes).
     pub fn sizes_json(&self) -> Value {
         let mut m = Map::new();
         let mut put = |k: &str, v: Value| {
@@ -173,15 +183,19 @@ impl Shape {
                 put("radius", (*radius).into());
             }
             Shape::Mesh(ms) => put("source", ms.source.clone().into()),
+            Shape::Plane(p) => put("area", p.area().into()),
         }
         Value::Object(m)
     }
 
-    /// The number of continuous size parameters (for the compactness measure).
+    /// The number of continuous size parameters (for the compactness measure); a plane
+    /// counts its vertex coordinates (2 per vertex), which describe its extent although
+    /// refinement keeps them fixed ([`Shape::sizes`] is empty for planes).
     pub fn size_parameter_count(&self) -> usize {
         match self {
             Shape::Cylinder { .. } | Shape::Elbow { .. } => 2,
             Shape::Mesh(_) => 0,
+            Shape::Plane(p) => 2 * p.vertex_count(),
             _ => 1,
         }
     }
@@ -197,6 +211,7 @@ impl Shape {
             Shape::Elbow { bend, radius } => PI * PI * radius * bend,
             Shape::Sphere { diameter } => PI * diameter * diameter,
             Shape::Mesh(m) => m.mesh.area(),
+            Shape::Plane(p) => p.area(),
         }
     }
 
@@ -208,6 +223,7 @@ impl Shape {
             Shape::Cylinder { length, radius } => (radius * radius + length * length / 4.0).sqrt(),
             Shape::Elbow { bend, radius } => bend + radius,
             Shape::Mesh(m) => m.bounding_radius(),
+            Shape::Plane(p) => p.bounding_radius(),
         }
     }
 
@@ -221,7 +237,8 @@ impl Shape {
     /// Layouts: square, cell-centre grid; disk, sunflower spiral; cylinder, cell-centre
     /// (θ, z) grid; elbow, rows of constant tube angle with counts proportional to their
     /// band's area; sphere, Fibonacci lattice; mesh, per-face counts proportional to face
-    /// area with R2 low-discrepancy points inside each face.
+    /// area with R2 low-discrepancy points inside each face; plane, the cell centres of a
+    /// grid of pitch `spacing` centred on its bounding box that fall inside the polygon.
     pub fn sample_surface(&self, spacing: f64) -> Vec<Point3<f64>> {
         let spacing = self.safe_spacing(spacing);
         match self {
@@ -231,6 +248,7 @@ impl Shape {
             Shape::Elbow { bend, radius } => elbow_sample(*bend, *radius, spacing),
             Shape::Sphere { diameter } => sphere_sample(diameter / 2.0, spacing),
             Shape::Mesh(m) => m.sample(spacing),
+            Shape::Plane(p) => p.sample(spacing),
         }
     }
 
@@ -260,6 +278,7 @@ impl Shape {
             Shape::Elbow { bend, radius } => elbow_closest(*bend, *radius, p),
             Shape::Sphere { diameter } => sphere_closest(diameter / 2.0, p),
             Shape::Mesh(m) => m.closest_point(p),
+            Shape::Plane(s) => s.closest_point(p),
         }
     }
 
@@ -306,6 +325,7 @@ impl Shape {
             Shape::Elbow { bend, radius } => elbow_mesh(*bend, *radius),
             Shape::Sphere { diameter } => sphere_mesh(diameter / 2.0),
             Shape::Mesh(m) => (*m.mesh).clone(),
+            Shape::Plane(p) => p.mesh().clone(),
         }
     }
 
@@ -329,6 +349,7 @@ impl Shape {
             Shape::Elbow { bend, radius } => elbow_ray(*bend, *radius, origin, dir),
             Shape::Sphere { diameter } => sphere_ray(diameter / 2.0, origin, dir),
             Shape::Mesh(m) => m.ray_intersect(origin, dir),
+            Shape::Plane(p) => p.ray_intersect(origin, dir),
         }
     }
 

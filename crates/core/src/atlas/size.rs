@@ -4,7 +4,8 @@
 //!
 //! Sizes are in the shape's local units (scene units before the pose's scale), in a fixed
 //! order per type: square: side; disk, sphere: diameter; cylinder: length, radius;
-//! elbow: bend, radius; a mesh has none.
+//! elbow: bend, radius; a mesh and a plane have none (a plane's extent is its polygon,
+//! fixed by the points it was traced from).
 
 use nalgebra::{Point3, Vector3};
 
@@ -12,14 +13,14 @@ use super::Shape;
 
 impl Shape {
     /// The continuous sizes of the shape (local units), in a fixed order (cylinder:
-    /// length, radius; elbow: bend, radius); empty for meshes.
+    /// length, radius; elbow: bend, radius); empty for meshes and planes.
     pub fn sizes(&self) -> Vec<f64> {
         match self {
             Shape::Square { side } => vec![*side],
             Shape::Disk { diameter } | Shape::Sphere { diameter } => vec![*diameter],
             Shape::Cylinder { length, radius } => vec![*length, *radius],
             Shape::Elbow { bend, radius } => vec![*bend, *radius],
-            Shape::Mesh(_) => Vec::new(),
+            Shape::Mesh(_) | Shape::Plane(_) => Vec::new(),
         }
     }
 
@@ -47,6 +48,7 @@ impl Shape {
                 radius: get(1, *radius),
             },
             Shape::Mesh(m) => Shape::Mesh(m.clone()),
+            Shape::Plane(p) => Shape::Plane(p.clone()),
         }
     }
 
@@ -63,7 +65,7 @@ impl Shape {
     /// `s_k = e^{η_k}` ([`Shape::sizes`] order), at fixed normalised surface coordinates:
     /// square, disk, sphere: the local point itself; cylinder: its axial component for
     /// the length and its radial one for the radius; elbow: the centre-line point for the
-    /// bend, the tube offset for the radius. Empty for meshes.
+    /// bend, the tube offset for the radius. Empty for meshes and planes.
     pub fn size_tangents(&self, x: &Point3<f64>) -> Vec<Vector3<f64>> {
         match self {
             Shape::Square { .. } | Shape::Disk { .. } | Shape::Sphere { .. } => vec![x.coords],
@@ -75,7 +77,7 @@ impl Shape {
                 let centre = Vector3::new(phi.cos(), phi.sin(), 0.0) * *bend;
                 vec![centre, x.coords - centre]
             }
-            Shape::Mesh(_) => Vec::new(),
+            Shape::Mesh(_) | Shape::Plane(_) => Vec::new(),
         }
     }
 }

@@ -10,7 +10,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::bvh::closest_on_triangle;
 use super::numeric::{apportion, poly_roots_in};
-use super::{MeshShape, Shape, ShapeKind, TriMesh};
+use super::{MeshShape, PlaneShape, Shape, ShapeKind, TriMesh};
 
 // ---------------------------------------------------------------------------------------
 // Fixtures
@@ -61,6 +61,21 @@ fn icosphere(radius: f64, levels: u32) -> TriMesh {
     mesh
 }
 
+/// An L-shaped plane with a square hole: non-convex, axis-aligned edges, area 3.12.
+pub(super) fn l_plane() -> Shape {
+    let p = |x: f64, y: f64| nalgebra::Point2::new(x, y);
+    let outline = vec![
+        p(-1.0, -1.0),
+        p(1.0, -1.0),
+        p(1.0, 0.2),
+        p(0.1, 0.2),
+        p(0.1, 1.0),
+        p(-1.0, 1.0),
+    ];
+    let hole = vec![p(-0.7, -0.7), p(-0.7, -0.3), p(-0.3, -0.3), p(-0.3, -0.7)];
+    Shape::Plane(PlaneShape::new(outline, vec![hole]).expect("valid L"))
+}
+
 fn box_shape() -> Shape {
     Shape::from_mesh("procedural:box", box_mesh(1.0, 0.5, 0.25)).expect("valid box")
 }
@@ -80,6 +95,7 @@ fn all_shapes() -> Vec<Shape> {
         },
         Shape::Sphere { diameter: 2.0 },
         box_shape(),
+        l_plane(),
     ];
     let kinds: Vec<ShapeKind> = shapes.iter().map(Shape::kind).collect();
     assert_eq!(kinds, ShapeKind::ALL);
@@ -122,7 +138,21 @@ fn residual(shape: &Shape, p: &Point3<f64>) -> f64 {
         }
         Shape::Sphere { diameter } => (p.coords.norm() - diameter / 2.0).abs(),
         Shape::Mesh(m) => mesh_residual(&m.mesh, p),
+        Shape::Plane(plane) => p.z.abs() + plane_distance_2d(plane, p.x, p.y),
     }
+}
+
+/// In-plane distance from `(x, y)` to a plane's polygon (0 inside), by `geo`.
+pub(super) fn plane_distance_2d(plane: &PlaneShape, x: f64, y: f64) -> f64 {
+    use geo::{Distance, Euclidean};
+    let ring = |r: &[nalgebra::Point2<f64>]| {
+        geo::LineString::from(r.iter().map(|v| (v.x, v.y)).collect::<Vec<_>>())
+    };
+    let polygon = geo::Polygon::new(
+        ring(plane.outline()),
+        plane.holes().iter().map(|h| ring(h)).collect(),
+    );
+    Euclidean.distance(&geo::Point::new(x, y), &polygon)
 }
 
 /// Distance from `p` to the plane of the nearest face whose triangle contains `p`'s
@@ -534,7 +564,7 @@ fn mesh_index_matches_brute_force_on_a_large_mesh() {
 /// An outward direction of the surface near `p`, from the type's geometry.
 fn outward(shape: &Shape, p: &Point3<f64>) -> Vector3<f64> {
     match shape {
-        Shape::Disk { .. } | Shape::Square { .. } => Vector3::z(),
+        Shape::Disk { .. } | Shape::Square { .. } | Shape::Plane(_) => Vector3::z(),
         Shape::Cylinder { .. } => Vector3::new(p.x, p.y, 0.0),
         Shape::Elbow { bend, .. } => {
             let rho = p.x.hypot(p.y);
@@ -938,7 +968,11 @@ fn elbow_quarter_is_where_the_conventions_say() {
 
 #[test]
 fn hostile_spacings_never_explode() {
-    for shape in [Shape::Square { side: 1.0 }, Shape::Sphere { diameter: 1.0 }] {
+    for shape in [
+        Shape::Square { side: 1.0 },
+        Shape::Sphere { diameter: 1.0 },
+        l_plane(),
+    ] {
         for spacing in [0.0, -1.0, f64::NAN, 1e-12] {
             let n = shape.sample_surface(spacing).len();
             assert!(

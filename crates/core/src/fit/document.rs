@@ -4,14 +4,16 @@
 //! Written: [`super::FitResult::to_json`] and [`super::result_json`] (also used by `synth
 //! --truth` and `register`, with their own settings); read back:
 //! [`super::FitResult::from_json`]. The chamfer's keys (`model` … `polish`) are written
-//! only for the chamfer method, `ray` and `mcmc` only for the mcmc method.
+//! for the chamfer method (the compact model's without `alpha`), `ray` and `mcmc` only for
+//! the mcmc method, the lattice's (`size` … `refine`) for every method but the compact
+//! model, which writes `detect` instead.
 
 use nalgebra::{Point3, Quaternion, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
-use super::options::FitOptions;
-use super::{McmcRun, McmcSettings, MethodSettings, Settings};
-use crate::atlas::{MeshShape, ShapeKind};
+use super::options::{AUTO_TYPES, FitOptions, parse_types};
+use super::{CompactSettings, McmcRun, McmcSettings, MethodSettings, Settings};
+use crate::atlas::MeshShape;
 use crate::chamfer::{ChamferOptions, PointModel};
 use crate::limit::{Limit, as_count};
 use crate::ray::RayModel;
@@ -46,24 +48,13 @@ pub struct PrimitiveEntry<'a> {
 /// `"settings"` of a fit: every value [`Settings`] holds that decides the result.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct SettingsDoc {
-    /// Primitive type names.
+    /// Primitive type names (`["auto"]`: the compact model).
     pub types: Vec<String>,
-    /// [`Settings::size`].
-    pub size: f64,
-    /// [`Settings::radius`].
-    pub radius: f64,
-    /// [`Settings::bend`].
-    pub bend: f64,
-    /// [`Settings::spacing`].
-    pub spacing: f64,
-    /// [`Settings::origin`].
-    pub origin: [f64; 3],
-    /// The lattice frame and how it was chosen.
-    pub frame: FrameDoc,
+    /// The lattice (every method but the compact model).
+    #[serde(flatten)]
+    pub lattice: Option<LatticeDoc>,
     /// [`Settings::noise`].
     pub noise: f64,
-    /// The refinement, `null` without.
-    pub refine: Option<RefineDoc>,
     /// [`Settings::sample_spacing`].
     pub sample_spacing: f64,
     /// [`Settings::point_spacing`].
@@ -79,10 +70,47 @@ pub struct SettingsDoc {
     /// The sampler and what it did (the mcmc method only).
     #[serde(default, skip_serializing_if = "Option::is_none")]
     pub mcmc: Option<McmcDoc>,
+    /// What the detection found (the compact model only).
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub detect: Option<DetectDoc>,
     /// [`Settings::seed`].
     pub seed: u64,
     /// The source of the mesh type's mesh, `null` without.
     pub mesh_model: Option<String>,
+}
+
+/// The lattice's keys of `"settings"`.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct LatticeDoc {
+    /// [`Settings::size`].
+    pub size: f64,
+    /// [`Settings::radius`].
+    pub radius: f64,
+    /// [`Settings::bend`].
+    pub bend: f64,
+    /// [`Settings::spacing`].
+    pub spacing: f64,
+    /// [`Settings::origin`].
+    pub origin: [f64; 3],
+    /// The lattice frame and how it was chosen.
+    pub frame: FrameDoc,
+    /// The refinement, `null` without.
+    pub refine: Option<RefineDoc>,
+}
+
+/// `settings.detect`: the compact model's [`CompactSettings`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct DetectDoc {
+    /// [`CompactSettings::segments`].
+    pub segments: usize,
+    /// [`CompactSettings::proposed`].
+    pub proposed: usize,
+    /// [`CompactSettings::growing_noise`].
+    pub growing_noise: f64,
+    /// [`CompactSettings::angle_degrees`].
+    pub angle_degrees: f64,
+    /// [`CompactSettings::voxel`].
+    pub voxel: Option<f64>,
 }
 
 /// `settings.frame`: lattice frame → scene.
@@ -122,8 +150,9 @@ pub struct RefineDoc {
 pub struct ChamferDoc {
     /// `existence` or `independent`.
     pub model: String,
-    /// α (`"inf"`: all).
-    pub alpha: Limit,
+    /// α (`"inf"`: all); not written by the compact model.
+    #[serde(default, skip_serializing_if = "Option::is_none")]
+    pub alpha: Option<Limit>,
     /// β (`"inf"`: all).
     pub beta: Limit,
     /// [`Settings::cap`] (a distance, not squared).
@@ -193,14 +222,7 @@ impl SettingsDoc {
     /// The document of `s`, with the mcmc `run` when there was one.
     pub fn new(s: &Settings, run: Option<&McmcRun>) -> Self {
         let q = s.frame.quaternion();
-        let (chamfer, ray, mcmc) = match &s.method {
-            MethodSettings::Chamfer => (Some(ChamferDoc::new(s)), None, None),
-            MethodSettings::Mcmc(m) => {
-                (None, Some(RayDoc::from(m.ray)), Some(McmcDoc::new(m, run)))
-            }
-        };
-        SettingsDoc {
-            types: s.kinds.iter().map(|k| k.name().to_owned()).collect(),
+        let lattice = LatticeDoc {
             size: s.size,
             radius: s.radius,
             bend: s.bend,
@@ -211,17 +233,41 @@ impl SettingsDoc {
                 rotation: [q.w, q.i, q.j, q.k],
                 support: s.frame_support.filter(|v| v.is_finite()),
             },
-            noise: s.noise,
             refine: s.refine.as_ref().map(|r| RefineDoc::new(r, s.cap)),
+        };
+        let mut doc = SettingsDoc {
+            types: s.kinds.iter().map(|k| k.name().to_owned()).collect(),
+            lattice: Some(lattice),
+            noise: s.noise,
             sample_spacing: s.sample_spacing,
             point_spacing: s.point_spacing,
             method: s.method.name().to_owned(),
-            chamfer,
-            ray,
-            mcmc,
+            chamfer: Some(ChamferDoc::new(s)),
+            ray: None,
+            mcmc: None,
+            detect: None,
             seed: s.seed,
             mesh_model: s.mesh.as_ref().map(|m| m.source.clone()),
+        };
+        match &s.method {
+            MethodSettings::Chamfer => {}
+            MethodSettings::Mcmc(m) => {
+                // The chamfer loss and its solver play no part.
+                doc.chamfer = None;
+                doc.ray = Some(RayDoc::from(m.ray));
+                doc.mcmc = Some(McmcDoc::new(m, run));
+            }
+            MethodSettings::Compact(c) => {
+                // No lattice: its sizes, frame and refinement play no part.
+                doc.types = vec![AUTO_TYPES.to_owned()];
+                doc.lattice = None;
+                if let Some(chamfer) = &mut doc.chamfer {
+                    chamfer.alpha = None;
+                }
+                doc.detect = Some(DetectDoc::from(c));
+            }
         }
+        doc
     }
 
     /// The settings this document describes; `load` gives the mesh of `mesh_model`. What
@@ -232,30 +278,33 @@ impl SettingsDoc {
         &self,
         load: &dyn Fn(&str) -> Result<MeshShape>,
     ) -> Result<(Settings, Option<McmcRun>)> {
-        let kinds = self
-            .types
-            .iter()
-            .map(|t| ShapeKind::parse(t))
-            .collect::<Result<Vec<_>>>()?;
+        let kinds = parse_types(&self.types)?;
         let defaults = FitOptions::default();
         let cap = self.chamfer.as_ref().map_or(0.0, |c| c.cap);
-        let (chamfer, solver) = match &self.chamfer {
-            Some(c) => c.options()?,
-            None => (ChamferOptions::default(), defaults.solver.clone()),
+        let (chamfer, solver) = match (&self.chamfer, self.method.as_str()) {
+            (Some(c), _) => c.options()?,
+            (None, "mcmc") => (ChamferOptions::default(), defaults.solver.clone()),
+            (None, _) => return Err(Error::json("settings.model", "the chamfer's settings")),
         };
         let (method, run) = self.method_settings()?;
+        // The compact model has no lattice (it writes none; here it is zero, as in a fit).
+        let lattice = match (&self.lattice, &method) {
+            (Some(l), _) => l.clone(),
+            (None, MethodSettings::Compact(_)) => LatticeDoc::none(),
+            (None, _) => return Err(Error::json("settings.size", "the lattice's settings")),
+        };
         let settings = Settings {
             kinds,
-            size: self.size,
-            radius: self.radius,
-            bend: self.bend,
-            spacing: self.spacing,
-            origin: Point3::from(self.origin),
-            frame: self.frame.rotation()?,
-            frame_source: self.frame.source()?,
-            frame_support: self.frame.support,
+            size: lattice.size,
+            radius: lattice.radius,
+            bend: lattice.bend,
+            spacing: lattice.spacing,
+            origin: Point3::from(lattice.origin),
+            frame: lattice.frame.rotation()?,
+            frame_source: lattice.frame.source()?,
+            frame_support: lattice.frame.support,
             noise: self.noise,
-            refine: self.refine.as_ref().map(|r| r.options(cap)),
+            refine: lattice.refine.as_ref().map(|r| r.options(cap)),
             sample_spacing: self.sample_spacing,
             point_spacing: self.point_spacing,
             cap,
@@ -272,7 +321,12 @@ impl SettingsDoc {
     /// The method's settings and the mcmc run.
     fn method_settings(&self) -> Result<(MethodSettings, Option<McmcRun>)> {
         match (self.method.as_str(), &self.ray, &self.mcmc) {
-            ("chamfer", _, _) => Ok((MethodSettings::Chamfer, None)),
+            ("chamfer", _, _) => Ok((
+                self.detect.as_ref().map_or(MethodSettings::Chamfer, |d| {
+                    MethodSettings::Compact(d.into())
+                }),
+                None,
+            )),
             ("mcmc", Some(ray), Some(m)) => {
                 let settings = McmcSettings {
                     ray: RayModel {
@@ -307,6 +361,50 @@ impl SettingsDoc {
                 value: other.into(),
                 expected: "chamfer or mcmc",
             }),
+        }
+    }
+}
+
+impl LatticeDoc {
+    /// The lattice settings of a fit without one (the compact model): zero sizes, the
+    /// scene axes.
+    fn none() -> Self {
+        LatticeDoc {
+            size: 0.0,
+            radius: 0.0,
+            bend: 0.0,
+            spacing: 0.0,
+            origin: [0.0; 3],
+            frame: FrameDoc {
+                source: "auto".into(),
+                rotation: [1.0, 0.0, 0.0, 0.0],
+                support: None,
+            },
+            refine: None,
+        }
+    }
+}
+
+impl From<&CompactSettings> for DetectDoc {
+    fn from(c: &CompactSettings) -> Self {
+        DetectDoc {
+            segments: c.segments,
+            proposed: c.proposed,
+            growing_noise: c.growing_noise,
+            angle_degrees: c.angle_degrees,
+            voxel: c.voxel,
+        }
+    }
+}
+
+impl From<&DetectDoc> for CompactSettings {
+    fn from(d: &DetectDoc) -> Self {
+        CompactSettings {
+            segments: d.segments,
+            proposed: d.proposed,
+            growing_noise: d.growing_noise,
+            angle_degrees: d.angle_degrees,
+            voxel: d.voxel,
         }
     }
 }
@@ -378,7 +476,7 @@ impl ChamferDoc {
         let c = &s.chamfer;
         ChamferDoc {
             model: c.model.name().to_owned(),
-            alpha: Limit::from_bound(c.alpha),
+            alpha: Some(Limit::from_bound(c.alpha)),
             beta: Limit::from_bound(c.beta),
             cap: s.cap,
             weights: [c.primitive_weight, c.point_weight],
@@ -395,7 +493,7 @@ impl ChamferDoc {
         let model = PointModel::parse(&self.model)?;
         let chamfer = ChamferOptions {
             model,
-            alpha: self.alpha.get(),
+            alpha: self.alpha.and_then(Limit::get),
             beta: self.beta.get(),
             cap: self.cap * self.cap,
             surface_distance: model == PointModel::Existence,

@@ -36,11 +36,13 @@
 //! | refinement | on ([`crate::refine::RefineOptions::default`]) |
 
 mod budget;
+mod compact;
 pub mod document;
 mod gaps;
 mod mcmc;
 mod options;
 mod pass;
+mod recentre;
 mod result;
 mod settings;
 #[cfg(test)]
@@ -49,12 +51,13 @@ mod tests;
 pub use budget::{BYTES_PER_POINT, estimate_bytes};
 pub use mcmc::McmcRun;
 pub use options::{
-    DEFAULT_ALPHA, DEFAULT_BETA, DEFAULT_DECAY, DEFAULT_FLIPS_PER_STEP, DEFAULT_FRAME,
+    AUTO_TYPES, DEFAULT_ALPHA, DEFAULT_BETA, DEFAULT_DECAY, DEFAULT_FLIPS_PER_STEP, DEFAULT_FRAME,
     DEFAULT_KIND, DEFAULT_MAX_ITERATIONS, DEFAULT_MEMORY_SHARE, DEFAULT_MIN_COS, DEFAULT_PRIOR,
     DEFAULT_SEARCH_POINTS, DEFAULT_SEED, DEFAULT_WEIGHT, FitOptions, McmcFitOptions, MethodOptions,
+    parse_types,
 };
 pub use result::{FitResult, FitStats, binary_chamfer, primitives_mesh, result_json};
-pub use settings::{McmcSettings, MethodSettings, Settings};
+pub use settings::{CompactSettings, McmcSettings, MethodSettings, Settings};
 
 use crate::frame::realign;
 use crate::progress::Progress;
@@ -88,7 +91,13 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
             index,
         });
     }
+    if let Some(shift) = recentre::local_shift(cloud) {
+        return recentre::fit_shifted(cloud, options, progress, shift);
+    }
     let index = PointIndex::new(&cloud.points);
+    if options.kinds.is_empty() {
+        return compact::fit_compact(cloud, &index, options, progress);
+    }
     let settings = Settings::resolve(cloud, &index, options)?;
     progress.message(&format!("settings: {}", settings.to_json()));
     let first = fill_gaps(

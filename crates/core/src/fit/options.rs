@@ -18,8 +18,21 @@ use crate::{Error, Limit, Result};
 
 pub use crate::solve::{DEFAULT_MAX_ITERATIONS, DEFAULT_SEARCH_POINTS};
 
-/// Default primitive type ([`FitOptions::kinds`]).
+/// The primitive type of the lattice when none is named ([`FitOptions::lattice`]).
 pub const DEFAULT_KIND: ShapeKind = ShapeKind::Square;
+/// The name of "the types the data supports" (`--types auto`, the default): an empty
+/// [`FitOptions::kinds`], the compact model of [`crate::compact`].
+pub const AUTO_TYPES: &str = "auto";
+
+/// The primitive types of `names` (`square`, `cylinder`, …); `["auto"]` (or nothing) is
+/// the empty list: the types the data supports ([`AUTO_TYPES`]).
+pub fn parse_types<S: AsRef<str>>(names: &[S]) -> Result<Vec<ShapeKind>> {
+    let names: Vec<&str> = names.iter().map(|n| n.as_ref().trim()).collect();
+    if names.is_empty() || names == [AUTO_TYPES] {
+        return Ok(Vec::new());
+    }
+    names.iter().map(|n| ShapeKind::parse(n)).collect()
+}
 /// Default lattice frame: the scan's dominant axes, the grid on the data.
 pub const DEFAULT_FRAME: FrameChoice = FrameChoice::Auto;
 /// Default α (samples per candidate and point, `independent` model only; thesis §6.3).
@@ -95,7 +108,7 @@ pub struct FitOptions {
 impl Default for FitOptions {
     fn default() -> Self {
         FitOptions {
-            kinds: vec![DEFAULT_KIND],
+            kinds: Vec::new(),
             size: None,
             radius: None,
             bend: None,
@@ -124,6 +137,7 @@ impl FitOptions {
     /// axes and origin, no continuous refinement; everything else as [`Default`].
     pub fn lattice() -> Self {
         FitOptions {
+            kinds: vec![DEFAULT_KIND],
             frame: FrameChoice::Axis,
             refine: None,
             ..Default::default()

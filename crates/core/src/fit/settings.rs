@@ -24,7 +24,7 @@ use crate::surface::{
 };
 use crate::{Error, PointCloud, Result, check};
 
-use super::options::DEFAULT_MEMORY_SHARE;
+use super::options::{DEFAULT_KIND, DEFAULT_MEMORY_SHARE};
 
 /// Every setting of a fit, defaults resolved.
 #[derive(Debug, Clone)]
@@ -79,6 +79,24 @@ pub enum MethodSettings {
     Chamfer,
     /// Ray likelihood + Metropolis–Hastings (thesis ch. 4).
     Mcmc(McmcSettings),
+    /// The probabilistic chamfer over candidates detected in the data (`types` auto,
+    /// [`crate::compact`]); the lattice settings (size, spacing, frame, …) play no part.
+    Compact(CompactSettings),
+}
+
+/// What the compact model ([`crate::compact`]) found and used, for `result.json`.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CompactSettings {
+    /// Detected segments (planes, cylinders, spheres).
+    pub segments: usize,
+    /// Candidates proposed from them.
+    pub proposed: usize,
+    /// Noise σ at the fine scale the region growing used (scene units).
+    pub growing_noise: f64,
+    /// The region-growing angle (degrees).
+    pub angle_degrees: f64,
+    /// Voxel edge of the detection's subsampling (scene units), if any.
+    pub voxel: Option<f64>,
 }
 
 impl MethodSettings {
@@ -87,6 +105,7 @@ impl MethodSettings {
         match self {
             MethodSettings::Chamfer => "chamfer",
             MethodSettings::Mcmc(_) => "mcmc",
+            MethodSettings::Compact(_) => "chamfer",
         }
     }
 }
@@ -306,10 +325,13 @@ impl Settings {
             NOISE_MAX_POINTS,
         ))
         .unwrap_or(0.0);
-        if o.kinds.is_empty() {
-            let expected = "at least one primitive type";
-            return Err(Error::out_of_range("kinds", "none", expected));
-        }
+        // No types named: the lattice methods (here: `mcmc`; the chamfer goes to the
+        // compact model first, see `super::fit`) use the default lattice type.
+        let kinds = if o.kinds.is_empty() {
+            vec![DEFAULT_KIND]
+        } else {
+            o.kinds.clone()
+        };
         let Lengths {
             size,
             spacing,
@@ -318,7 +340,7 @@ impl Settings {
             cap,
             sample_spacing,
         } = Lengths::resolve(o, diagonal, point_spacing, noise)?;
-        if o.kinds.contains(&ShapeKind::Mesh) && o.mesh.is_none() {
+        if kinds.contains(&ShapeKind::Mesh) && o.mesh.is_none() {
             return Err(Error::Missing {
                 what: "a mesh (the `mesh` option)".into(),
                 needed_by: "the mesh primitive type",
@@ -336,7 +358,7 @@ impl Settings {
         };
         let (frame, frame_support, origin) = resolve_frame(cloud, index, o, spacing, size);
         Ok(Settings {
-            kinds: o.kinds.clone(),
+            kinds,
             size,
             radius,
             bend,
@@ -410,6 +432,7 @@ impl Settings {
                         radius: self.radius,
                     },
                     ShapeKind::Mesh => Shape::Mesh(self.mesh.clone()?),
+                    ShapeKind::Plane => return None,
                 })
             })
             .collect()

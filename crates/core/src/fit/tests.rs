@@ -100,11 +100,6 @@ fn faults_are_typed_and_name_the_option_by_its_field() {
         ..FitOptions::lattice()
     };
     negative(fit(&c, &bad_cap, &Silent), "cap");
-    let no_types = FitOptions {
-        kinds: Vec::new(),
-        ..FitOptions::lattice()
-    };
-    negative(fit(&c, &no_types, &Silent), "kinds");
     assert!(matches!(
         fit(&PointCloud::default(), &FitOptions::lattice(), &Silent),
         Err(Error::EmptyCloud)

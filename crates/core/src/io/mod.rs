@@ -1,9 +1,30 @@
-//! File input/output: PLY point clouds and triangle meshes, atomic file writes, JSON.
+//! File input/output: point clouds in many formats, PLY triangle meshes, atomic file
+//! writes, JSON.
 //!
-//! # Reading
+//! # Reading clouds
 //!
-//! [`read_cloud`] / [`read_cloud_report`] read the `vertex` element of any PLY file
-//! (ascii, binary little- or big-endian) into a [`PointCloud`]:
+//! [`read_cloud`] / [`read_cloud_report`] read a point cloud from any of these formats,
+//! chosen by the file's extension (any case) and checked against its first bytes:
+//!
+//! | extension | format | reader |
+//! |---|---|---|
+//! | `.ply` | PLY ascii, binary little- or big-endian | `ply-rs-bw` under our header and body checks |
+//! | `.pcd` | PCD (PCL) ascii, binary, binary_compressed; organised or not | hand-written, LZF by `lzf-rust` (see `io/pcd`) |
+//! | `.las`, `.laz` | LAS 1.0–1.4, LAZ | the `las` crate with `laz` |
+//! | `.e57` | E57 (all scans, poses applied) | the `e57` crate |
+//! | `.xyz`, `.txt`, `.pts`, `.csv` | text, with or without a header row | hand-written |
+//!
+//! An unknown extension, or content that is another format's (a `.pcd` name on a LAS
+//! file), is an [`Error::UnknownFormat`] naming the file and the formats accepted. A
+//! regular file without an extension is recognised by its first bytes (text when it
+//! has none of the magics); a pipe or device without one is read as PLY.
+//!
+//! Coordinates are kept as `f64` in the file's frame (LAS/LAZ/E57 georeferenced values
+//! near 10⁶ m included; the fit works in a local frame, see `fit`).
+//!
+//! ## PLY
+//!
+//! The `vertex` element of any PLY file is read:
 //!
 //! | PLY vertex property | goes to | accepted types |
 //! |---|---|---|
@@ -17,19 +38,32 @@
 //! of `nx, ny, nz`). Other vertex properties (`intensity`, `confidence`, `alpha`, …) and
 //! other elements (`face`, `edge`, …) are read past and listed in the [`ReadReport`].
 //! Header type names may be the classic ones (`float`, `uchar`, `int`) or the sized
-//! ones (`float32`, `uint8`, `int32`). Points with a non-finite coordinate are dropped
-//! (from every attribute) and counted in [`ReadReport::skipped_non_finite`]. An empty
-//! cloud is not an error here; [`ReadReport::warnings`] mentions it.
+//! ones (`float32`, `uint8`, `int32`).
+//!
+//! ## Other formats
+//!
+//! PCD gives `x y z`, `normal_x normal_y normal_z` and packed `rgb`/`rgba`; LAS/LAZ and
+//! E57 give positions and colours; text gives `x y z`, normals and colours by header
+//! name (the modules `pcd`, `las`, `e57` and `text` say exactly what).
+//!
+//! ## For every format
+//!
+//! Points with a non-finite coordinate (NaN holes of organised PCD clouds, invalid E57
+//! points) are dropped (from every attribute) and counted in
+//! [`ReadReport::skipped_non_finite`]. An empty cloud is not an error here;
+//! [`ReadReport::warnings`] mentions it.
+//!
+//! Every failure is an [`Error::Io`], [`Error::Format`] or [`Error::UnknownFormat`]
+//! whose one-line message names the file and the fault (missing file, wrong magic,
+//! unknown encoding or compression, truncated body, counts that disagree with each
+//! other or are too large for the file, …). No memory proportional to a count in the
+//! file is reserved before the file is known to be large enough to hold that many
+//! points (or, for compressed bodies, before the count is within what the compressed
+//! bytes can expand to), and a read never writes anything.
 //!
 //! [`read_mesh`] / [`read_mesh_report`] read `vertex` positions and the `face` element's
-//! `vertex_indices` (or `vertex_index`) lists into a [`TriMesh`]; polygons are
-//! fan-triangulated.
-//!
-//! Every failure is an [`Error::Io`] or [`Error::Format`] whose one-line message names
-//! the file and the fault (missing file, not a PLY file, unknown format, truncated body,
-//! header counts that disagree with the body, counts too large for the file, …). No
-//! memory proportional to a header count is reserved before the file is known to be
-//! large enough to hold that many elements.
+//! `vertex_indices` (or `vertex_index`) lists of a PLY file into a [`TriMesh`]; polygons
+//! are fan-triangulated.
 //!
 //! # Writing
 //!
@@ -41,24 +75,82 @@
 //! existing one. [`write_json_atomic`] does the same for JSON values.
 
 mod atomic;
+mod collect;
+mod detect;
+mod e57;
 pub mod json;
+mod las;
 mod palette;
+mod pcd;
 mod ply;
+mod text;
 
 #[cfg(test)]
 mod tests;
 
 use std::fmt;
 
-pub use atomic::{StagedFile, stage, stage_json, write_atomic, write_json_atomic};
-pub use palette::{PALETTE, palette_color};
-pub use ply::{
-    read_cloud, read_cloud_report, read_mesh, read_mesh_report, write_cloud, write_mesh,
-    write_mesh_colored,
-};
+use std::path::Path;
 
+pub use atomic::{StagedFile, stage, stage_json, write_atomic, write_json_atomic};
+pub use detect::{ACCEPTED_FORMATS, CloudFormat, PcdData, TextKind};
+pub use palette::{PALETTE, palette_color};
+pub use ply::{read_mesh, read_mesh_report, write_cloud, write_mesh, write_mesh_colored};
+
+use self::detect::Kind;
 #[allow(unused_imports)] // for the doc links above
-use crate::{Error, PointCloud, TriMesh};
+use crate::{Error, PointCloud, Result, TriMesh};
+
+/// Reads a point cloud from a file of any accepted format (see the [module
+/// docs](crate::io)); [`read_cloud_report`] also says what was skipped.
+///
+/// ```
+/// use primfit_core::io::read_cloud;
+///
+/// let dir = std::env::temp_dir().join(format!("primfit-doc-read-{}", std::process::id()));
+/// std::fs::create_dir_all(&dir)?;
+/// let path = dir.join("two.ply");
+/// std::fs::write(&path, "ply
+/// format ascii 1.0
+/// element vertex 2
+/// property float x
+/// property float y
+/// property float z
+/// property uchar red
+/// property uchar green
+/// property uchar blue
+/// end_header
+/// 0 0 0 255 0 0
+/// 1 2 3 0 0 255
+/// ")?;
+/// let cloud = read_cloud(&path)?;
+/// assert_eq!(cloud.len(), 2);
+/// assert_eq!((cloud.points[1].x, cloud.points[1].z), (1.0, 3.0));
+/// assert_eq!(cloud.colors.as_deref(), Some(&[[255, 0, 0], [0, 0, 255]][..]));
+/// assert!(cloud.normals.is_none());
+///
+/// // The same points as CSV text with a header row.
+/// let csv = dir.join("two.csv");
+/// std::fs::write(&csv, "x,y,z,red,green,blue\n0,0,0,255,0,0\n1,2,3,0,0,255\n")?;
+/// assert_eq!(read_cloud(&csv)?, cloud);
+/// std::fs::remove_dir_all(&dir)?;
+/// # Ok::<(), Box<dyn std::error::Error>>(())
+/// ```
+pub fn read_cloud(path: &Path) -> Result<PointCloud> {
+    read_cloud_report(path).map(|(cloud, _)| cloud)
+}
+
+/// Reads a point cloud and reports on the file: its format, points skipped for a
+/// non-finite coordinate, and the properties (and PLY elements) read past.
+pub fn read_cloud_report(path: &Path) -> Result<(PointCloud, ReadReport)> {
+    match detect::detect(path)? {
+        Kind::Ply => ply::read_cloud_report(path),
+        Kind::Pcd => pcd::read_cloud_report(path),
+        Kind::Las => las::read_cloud_report(path),
+        Kind::E57 => e57::read_cloud_report(path),
+        Kind::Text(kind) => text::read_cloud_report(path, kind),
+    }
+}
 
 /// How [`write_cloud`] and [`write_mesh`] encode a PLY body.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
@@ -95,18 +187,20 @@ impl fmt::Display for PlyFormat {
 /// What [`read_cloud_report`] found besides the cloud itself.
 #[derive(Debug, Clone, PartialEq, Eq)]
 pub struct ReadReport {
-    /// The file's body encoding.
-    pub format: PlyFormat,
-    /// Number of vertices the file holds (kept + skipped).
+    /// The file's format and encoding.
+    pub format: CloudFormat,
+    /// Number of points (PLY vertices) the file holds (kept + skipped).
     pub vertices_in_file: usize,
     /// Vertices dropped because a coordinate was NaN or infinite.
     pub skipped_non_finite: usize,
-    /// Vertex properties that were read past (e.g. `intensity`, `confidence`), in header
-    /// order, including parts of incomplete attributes (e.g. `nx` without `ny`).
+    /// Vertex properties (PCD fields, text columns) that were read past (e.g.
+    /// `intensity`, `confidence`), in header order, including parts of incomplete
+    /// attributes (e.g. `nx` without `ny`).
     pub ignored_properties: Vec<String>,
     /// Elements other than `vertex` that were read past (e.g. `face`), in header order.
     pub ignored_elements: Vec<String>,
-    /// The header's `comment` and `obj_info` lines, without the keyword.
+    /// The header's `comment` and `obj_info` lines (PCD and text: `#` lines), without
+    /// the keyword.
     pub comments: Vec<String>,
 }
 

@@ -185,7 +185,10 @@ fn io_cloud_round_trip_binary_all_attributes() {
     write_cloud(&path, &cloud, Encoding::BinaryLittleEndian).expect("write");
     let (back, report) = read_cloud_report(&path).expect("read");
     assert_eq!(back, cloud);
-    assert_eq!(report.format, PlyFormat::BinaryLittleEndian);
+    assert_eq!(
+        report.format,
+        CloudFormat::Ply(PlyFormat::BinaryLittleEndian)
+    );
     assert_eq!(report.vertices_in_file, 5);
     assert!(report.ignored_properties.is_empty() && report.ignored_elements.is_empty());
     assert!(report.warnings().is_empty());
@@ -208,7 +211,7 @@ fn io_cloud_round_trip_ascii_all_attributes_is_exact() {
     assert!(text.contains("property double x\n"));
     let (back, report) = read_cloud_report(&path).expect("read");
     assert_eq!(back, cloud);
-    assert_eq!(report.format, PlyFormat::Ascii);
+    assert_eq!(report.format, CloudFormat::Ply(PlyFormat::Ascii));
 }
 
 #[test]
@@ -326,7 +329,7 @@ fn io_big_endian_cloud_and_mesh_by_hand() {
     let path = dir.write("be.ply", &b.buf);
 
     let (cloud, report) = read_cloud_report(&path).expect("cloud");
-    assert_eq!(report.format, PlyFormat::BinaryBigEndian);
+    assert_eq!(report.format, CloudFormat::Ply(PlyFormat::BinaryBigEndian));
     assert_eq!(report.ignored_elements, vec!["face"]);
     assert_eq!(cloud.points[2], Point3::new(1.0, 1.0, 0.5));
     assert_eq!(cloud.colors.as_deref().expect("colours")[3], [30, 1, 2]);
@@ -1224,7 +1227,7 @@ fn io_real_bunny_ascii_with_faces() {
     };
     let (cloud, report) = read_cloud_report(&path).expect("bunny");
     assert_eq!(cloud.len(), 35947);
-    assert_eq!(report.format, PlyFormat::Ascii);
+    assert_eq!(report.format, CloudFormat::Ply(PlyFormat::Ascii));
     assert_eq!(report.ignored_properties, vec!["confidence", "intensity"]);
     assert_eq!(report.ignored_elements, vec!["face"]);
     let mesh = read_mesh(&path).expect("bunny mesh");

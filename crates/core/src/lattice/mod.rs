@@ -94,14 +94,18 @@ impl CandidateSet {
     }
 
     /// A set holding exactly `primitives` (one template per distinct shape, samples at
-    /// `sample_spacing`), e.g. to score a ground truth with the fitter's loss.
+    /// `sample_spacing`), e.g. to score a ground truth with the fitter's loss. Planes
+    /// share a template only when their polygons are equal.
     pub fn from_primitives(primitives: &[Primitive], sample_spacing: f64) -> Result<Self> {
         let mut templates: Vec<Template> = Vec::new();
         let mut template_of = Vec::with_capacity(primitives.len());
         for p in primitives {
             p.shape.validate()?;
-            let same = |t: &Template| {
-                t.shape.sizes_json() == p.shape.sizes_json() && t.shape.kind() == p.shape.kind()
+            let same = |t: &Template| match (&t.shape, &p.shape) {
+                (Shape::Plane(a), Shape::Plane(b)) => a == b,
+                _ => {
+                    t.shape.sizes_json() == p.shape.sizes_json() && t.shape.kind() == p.shape.kind()
+                }
             };
             let t = match templates.iter().position(same) {
                 Some(t) => t,

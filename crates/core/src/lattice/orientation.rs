@@ -10,7 +10,9 @@ use crate::atlas::ShapeKind;
 /// - square, disk: normal along z, x or y (3);
 /// - cylinder: axis along z, x or y (3);
 /// - elbow: plane normal along z, x or y, times the 4 quadrants (12);
-/// - sphere, mesh: the identity (1).
+/// - sphere, mesh: the identity (1);
+/// - plane: none: a plane's orientation comes from its points, not from the lattice
+///   frame, so it is never a lattice candidate.
 pub fn orientations(kind: ShapeKind) -> Vec<UnitQuaternion<f64>> {
     use std::f64::consts::FRAC_PI_2;
     let axes = [
@@ -29,5 +31,6 @@ pub fn orientations(kind: ShapeKind) -> Vec<UnitQuaternion<f64>> {
             })
             .collect(),
         ShapeKind::Sphere | ShapeKind::Mesh => vec![UnitQuaternion::identity()],
+        ShapeKind::Plane => Vec::new(),
     }
 }

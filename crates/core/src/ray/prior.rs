@@ -109,7 +109,7 @@ enum Class {
 fn need_of(prim: &Primitive, up: &Vector3<f64>) -> Need {
     let z = prim.pose.rotation * Vector3::z();
     match prim.shape.kind() {
-        ShapeKind::Square | ShapeKind::Disk => {
+        ShapeKind::Square | ShapeKind::Disk | ShapeKind::Plane => {
             let c = z.dot(up).abs();
             let class = if c >= COS_45 {
                 Class::FaceUp

@@ -117,10 +117,13 @@ impl Weights {
 /// The scene axis a primitive may not turn about: a square's or disk's normal, so that a
 /// patch tilts onto its points but keeps its in-plane orientation from the lattice frame
 /// (for a disk that turn is a symmetry; for a square it is all but unconstrained inside
-/// the data, and left free the patches of a plane spin to all angles).
+/// the data, and left free the patches of a plane spin to all angles). A bounded plane's
+/// in-plane orientation came from its points with its outline, so it is locked too.
 fn locked_axis(p: &Primitive) -> Option<Vector3<f64>> {
     match p.shape {
-        Shape::Square { .. } | Shape::Disk { .. } => Some(p.pose.rotation * Vector3::z()),
+        Shape::Square { .. } | Shape::Disk { .. } | Shape::Plane(_) => {
+            Some(p.pose.rotation * Vector3::z())
+        }
         _ => None,
     }
 }

@@ -40,7 +40,7 @@ pub(super) fn retype(
     let others: Vec<&Shape> = ctx
         .shapes
         .iter()
-        .filter(|s| s.kind() != kind && s.kind() != ShapeKind::Mesh)
+        .filter(|s| s.kind() != kind && !matches!(s.kind(), ShapeKind::Mesh | ShapeKind::Plane))
         .collect();
     if others.is_empty() {
         return None;

@@ -178,6 +178,24 @@ pub struct Solution {
     pub flips: usize,
 }
 
+impl Solution {
+    /// The solution of a problem in which none of `n` candidates can exist (all were
+    /// dominated): every probability 0, nothing exists, the loss `loss` throughout.
+    pub fn nothing(n: usize, loss: LossValue) -> Solution {
+        Solution {
+            probability: vec![0.0; n],
+            exists: vec![false; n],
+            history: vec![loss.total],
+            iterations: 0,
+            evaluations: 0,
+            stop: StopReason::Gradient,
+            thresholded: loss,
+            binary: loss,
+            flips: 0,
+        }
+    }
+}
+
 /// Minimises the loss of `coeffs` over existence, thresholds and polishes.
 pub fn solve(
     coeffs: &Coefficients,

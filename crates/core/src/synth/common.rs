@@ -103,6 +103,7 @@ pub(crate) fn same_shape(a: &Shape, b: &Shape, rel: f64) -> bool {
             m1.source == m2.source
                 && (std::sync::Arc::ptr_eq(&m1.mesh, &m2.mesh) || m1.mesh == m2.mesh)
         }
+        (Shape::Plane(p1), Shape::Plane(p2)) => p1 == p2,
         _ => false,
     }
 }
@@ -246,6 +247,10 @@ pub fn sample_shape_local<R: Rng>(shape: &Shape, rng: &mut R) -> Point3<f64> {
             let cdf = mesh_cdf(&m.mesh);
             sample_mesh(&m.mesh, &cdf, rng)
         }
+        Shape::Plane(p) => {
+            let cdf = mesh_cdf(p.mesh());
+            sample_mesh(p.mesh(), &cdf, rng)
+        }
         _ => sample_analytic(shape, rng),
     }
 }
@@ -276,7 +281,9 @@ fn sample_analytic<R: Rng>(shape: &Shape, rng: &mut R) -> Point3<f64> {
             Point3::new(rho * phi.cos(), rho * phi.sin(), radius * psi.sin())
         }
         Shape::Sphere { diameter } => Point3::from(random_unit(rng) * (0.5 * diameter)),
-        Shape::Mesh(_) => unreachable!("meshes are sampled with a prepared table"),
+        Shape::Mesh(_) | Shape::Plane(_) => {
+            unreachable!("meshes and planes are sampled with a prepared table")
+        }
     }
 }
 
@@ -377,6 +384,10 @@ pub(crate) fn sample_pieces<R: Rng>(
                 shape: Shape::Mesh(m),
                 ..
             }) => Some(mesh_cdf(&m.mesh)),
+            Piece::Prim(Primitive {
+                shape: Shape::Plane(p),
+                ..
+            }) => Some(mesh_cdf(p.mesh())),
             _ => None,
         })
         .collect();
@@ -392,6 +403,7 @@ pub(crate) fn sample_pieces<R: Rng>(
             Piece::Prim(prim) => {
                 let local = match (&prim.shape, &mesh_cdfs[i]) {
                     (Shape::Mesh(m), Some(c)) => sample_mesh(&m.mesh, c, rng),
+                    (Shape::Plane(p), Some(c)) => sample_mesh(p.mesh(), c, rng),
                     (shape, _) => sample_analytic(shape, rng),
                 };
                 prim.pose.to_scene(&local)

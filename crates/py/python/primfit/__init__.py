@@ -43,6 +43,7 @@ __all__ = [
     "fit",
     "probabilistic_chamfer",
     "read_mesh",
+    "read",
     "read_ply",
     "synth",
     "write_mesh",
@@ -222,7 +223,8 @@ class FitResult:
     primitives : list of dict
         The chosen primitives as in ``result.json``: ``type``, ``size``, ``pose``
         (``translation``, ``rotation`` quaternion ``[w, x, y, z]``, ``scale``),
-        ``existence``.
+        ``existence``; a ``"plane"`` also has ``outline`` ``[[x, y], ...]`` and
+        ``holes`` ``[[[x, y], ...], ...]`` in its local frame (z = 0).
     existence : (P,) float64 array
         Continuous existence probability of each chosen primitive.
     metrics : dict
@@ -302,7 +304,9 @@ def fit(cloud: ArrayLike | Mapping[str, Any], **options: Any) -> FitResult:
     Parameters
     ----------
     types : list of str or comma-separated str
-        Primitive types from square, disk, cylinder, elbow, sphere, mesh (default square).
+        ``"auto"`` (the default: the compact model, planes with outlines, cylinders and
+        spheres detected in the data; the lattice options play no part), or lattice types
+        from square, disk, cylinder, elbow, sphere, mesh.
     size, radius, bend, spacing : float
         Candidate main extent (default: bounding-box diagonal / 8, rounded down to 1, 2 or
         5 × 10^k), tube radius (size / 10), elbow bend radius (spacing), lattice step
@@ -448,6 +452,11 @@ def write_ply(
         sensors=None if sensors is None else _points("sensors", sensors),
         ascii=ascii,
     )
+
+
+read = read_ply
+"""Reads a point cloud of any supported format (PLY, PCD, LAS/LAZ, E57, XYZ/PTS/CSV),
+chosen by extension and checked by content: an alias of :func:`read_ply`."""
 
 
 def read_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:

@@ -16,7 +16,7 @@ use ply_rs_bw::ply::ElementDef;
 use self::body::Body;
 use self::header::{PlyHeader, check_body_size, read_header};
 use self::records::{FaceRecord, VertexRecord, VertexSchema, check_face_schema};
-use super::{MeshReport, ReadReport};
+use super::{CloudFormat, MeshReport, ReadReport};
 use crate::{Error, PointCloud, Result, TriMesh};
 
 pub use self::write::{write_cloud, write_mesh, write_mesh_colored};
@@ -83,44 +83,10 @@ impl PlyFile {
     }
 }
 
-/// Reads the `vertex` element of a PLY file as a point cloud. See the [module
-/// docs](crate::io) for the properties read; [`read_cloud_report`] also says what was
-/// skipped.
-///
-/// ```
-/// use primfit_core::io::read_cloud;
-///
-/// let dir = std::env::temp_dir().join(format!("primfit-doc-read-{}", std::process::id()));
-/// std::fs::create_dir_all(&dir)?;
-/// let path = dir.join("two.ply");
-/// std::fs::write(&path, "ply
-/// format ascii 1.0
-/// element vertex 2
-/// property float x
-/// property float y
-/// property float z
-/// property uchar red
-/// property uchar green
-/// property uchar blue
-/// end_header
-/// 0 0 0 255 0 0
-/// 1 2 3 0 0 255
-/// ")?;
-/// let cloud = read_cloud(&path)?;
-/// assert_eq!(cloud.len(), 2);
-/// assert_eq!((cloud.points[1].x, cloud.points[1].z), (1.0, 3.0));
-/// assert_eq!(cloud.colors.as_deref(), Some(&[[255, 0, 0], [0, 0, 255]][..]));
-/// assert!(cloud.normals.is_none());
-/// std::fs::remove_dir_all(&dir)?;
-/// # Ok::<(), Box<dyn std::error::Error>>(())
-/// ```
-pub fn read_cloud(path: &Path) -> Result<PointCloud> {
-    read_cloud_report(path).map(|(cloud, _)| cloud)
-}
-
-/// Reads a point cloud and reports on the file: its format, points skipped for a
-/// non-finite coordinate, and the properties and elements read past.
-pub fn read_cloud_report(path: &Path) -> Result<(PointCloud, ReadReport)> {
+/// Reads the `vertex` element of a PLY file as a point cloud and reports on the file:
+/// its format, points skipped for a non-finite coordinate, and the properties and
+/// elements read past. [`crate::io::read_cloud_report`] sends `.ply` files here.
+pub(crate) fn read_cloud_report(path: &Path) -> Result<(PointCloud, ReadReport)> {
     let mut file = PlyFile::open(path)?;
     let vertex = file.require("vertex", path)?;
     let schema = VertexSchema::of(&vertex, path)?;
@@ -141,7 +107,7 @@ pub fn read_cloud_report(path: &Path) -> Result<(PointCloud, ReadReport)> {
     let format = file.header.format;
     file.body.finish()?;
     let report = ReadReport {
-        format,
+        format: CloudFormat::Ply(format),
         vertices_in_file: vertex.count,
         skipped_non_finite: cloud.skipped,
         ignored_properties: schema.ignored,

@@ -1,0 +1,27 @@
+//! The compact model of a scan (`--types auto`): primitives proposed from the data's own
+//! geometry, kept by the probabilistic chamfer with a description-length cost per
+//! primitive, so that few large primitives beat many small ones.
+//!
+//! | stage | file |
+//! |---|---|
+//! | planes, cylinders and spheres found in the data | [`crate::detect`] |
+//! | candidates: a bounded `plane` per connected part of a planar segment, the bounded primitive of a curved one | `candidates.rs` |
+//! | description length of a primitive, in loss units | `mdl.rs` |
+//! | existence of the candidates | `existence.rs` |
+//! | the whole: [`compact_model`] | `model.rs` |
+
+mod candidates;
+mod existence;
+mod geometry;
+mod mdl;
+mod model;
+
+pub use candidates::{
+    OUTLINE_CELLS_PER_SPACING, Proposal, TUBE_SECTORS, propose, supported_samples,
+};
+pub use existence::{Existence, ExistenceOptions, decide_existence};
+pub use mdl::{description_length, primitive_cost};
+pub use model::{
+    CAP_SIGMAS, CAP_SPACINGS, CompactModel, CompactOptions, EXISTENCE_BETA, SAMPLE_SPACINGS,
+    compact_model,
+};

@@ -1,0 +1,156 @@
+//! The compact model: detect → propose → decide existence.
+
+use std::time::Instant;
+
+use nalgebra::Point3;
+use rayon::prelude::*;
+
+use super::candidates::{Proposal, propose, supported_samples};
+use super::existence::{ExistenceOptions, decide_existence};
+use super::mdl::primitive_cost;
+use crate::chamfer::ChamferOptions;
+use crate::detect::{DetectOptions, Detection, detect};
+use crate::progress::Progress;
+use crate::solve::{Solution, SolverOptions};
+use crate::spatial::PointIndex;
+use crate::{Primitive, Result};
+
+/// The distance (in noise σ) within which a point counts as explained by a surface:
+/// `cap = max(CAP_SIGMAS σ, CAP_SPACINGS s)`, with `d_cap = cap²` the cost of an
+/// unexplained point. Five σ holds 99.99994 % of Gaussian noise.
+pub const CAP_SIGMAS: f64 = 5.0;
+
+/// See [`CAP_SIGMAS`]: a point within three point spacings of a surface is explained
+/// even on a scan whose noise is below its sampling.
+pub const CAP_SPACINGS: f64 = 3.0;
+
+/// Candidate sample spacing in point spacings `s`: at one sample per spacing, the
+/// primitive term of a surface covered by points is about `(s/2)²` per sample, well
+/// under the cap, and a candidate has about as many samples as it explains points.
+pub const SAMPLE_SPACINGS: f64 = 1.0;
+
+/// β of the existence decision: candidates kept per point. Proposed candidates are
+/// disjoint surfaces, so a point lies near a handful at most.
+pub const EXISTENCE_BETA: usize = 8;
+
+/// Options of [`compact_model`]; every `None` is derived from the data.
+#[derive(Debug, Clone, Default)]
+pub struct CompactOptions {
+    /// Shape detection.
+    pub detect: DetectOptions,
+    /// The distance within which a point counts as explained (scene units); default
+    /// `max(5σ, 3s)` ([`CAP_SIGMAS`], [`CAP_SPACINGS`]).
+    pub cap: Option<f64>,
+    /// Spacing of candidate samples (scene units); default the point spacing `s`.
+    pub sample_spacing: Option<f64>,
+    /// The solver of the existence decision.
+    pub solver: SolverOptions,
+}
+
+/// What [`compact_model`] returns.
+#[derive(Debug, Clone)]
+pub struct CompactModel {
+    /// The primitives that exist.
+    pub primitives: Vec<Primitive>,
+    /// The continuous existence probability of each.
+    pub existence: Vec<f64>,
+    /// The detected segments (point lists, models, noise, spacing).
+    pub detection: Detection,
+    /// Candidates proposed from the segments.
+    pub proposed: usize,
+    /// The existence solver's output over the proposed candidates.
+    pub solution: Solution,
+    /// The cap used (scene units).
+    pub cap: f64,
+    /// The sample spacing used (scene units).
+    pub sample_spacing: f64,
+    /// Seconds spent detecting.
+    pub detect_seconds: f64,
+    /// Seconds spent proposing candidates and deciding their existence.
+    pub existence_seconds: f64,
+}
+
+/// The compact model of `points` (indexed by `index`): shapes detected from the data
+/// ([`crate::detect`]), proposed as bounded candidates, kept by the probabilistic
+/// chamfer with a description length per primitive ([`super::mdl`]).
+pub fn compact_model(
+    points: &[Point3<f64>],
+    index: &PointIndex,
+    options: &CompactOptions,
+    progress: &dyn Progress,
+) -> Result<CompactModel> {
+    let t0 = Instant::now();
+    let detection = detect(points, index, &options.detect)?;
+    let detect_seconds = t0.elapsed().as_secs_f64();
+    progress.message(&format!(
+        "detected {} segments ({} clutter, {} points unassigned), σ = {:.5}, spacing {:.5}, {:.2} s",
+        detection.segments.len(),
+        detection.clutter.len(),
+        detection.unassigned.len(),
+        detection.model_noise,
+        detection.spacing,
+        detect_seconds
+    ));
+    let t1 = Instant::now();
+    let proposals: Vec<Proposal> = propose(points, &detection);
+    let (noise, spacing) = (detection.model_noise, detection.spacing);
+    let cap = options
+        .cap
+        .unwrap_or((CAP_SIGMAS * noise).max(CAP_SPACINGS * spacing));
+    let sample_spacing = options.sample_spacing.unwrap_or(SAMPLE_SPACINGS * spacing);
+    let candidates: Vec<Primitive> = proposals.iter().map(|p| p.primitive.clone()).collect();
+    let cost: Vec<f64> = candidates
+        .iter()
+        .map(|p| primitive_cost(p, noise, points.len()))
+        .collect();
+    let existence_options = ExistenceOptions {
+        sample_spacing,
+        chamfer: ChamferOptions {
+            cap: cap * cap,
+            surface_distance: true,
+            beta: Some(EXISTENCE_BETA),
+            ..Default::default()
+        },
+        solver: options.solver.clone(),
+    };
+    let samples: Vec<Vec<Point3<f64>>> = proposals
+        .par_iter()
+        .map(|p| {
+            let segment = &detection.segments[p.segment].points;
+            supported_samples(&p.primitive, segment, points, sample_spacing)
+        })
+        .collect();
+    let decision = decide_existence(
+        points,
+        &candidates,
+        &samples,
+        &cost,
+        &existence_options,
+        progress,
+    )?;
+    let (mut primitives, mut existence) = (Vec::new(), Vec::new());
+    for (i, c) in candidates.into_iter().enumerate() {
+        if decision.exists[i] {
+            primitives.push(c);
+            existence.push(decision.probability[i]);
+        }
+    }
+    let existence_seconds = t1.elapsed().as_secs_f64();
+    progress.message(&format!(
+        "{} of {} proposed primitives exist, {:.2} s",
+        primitives.len(),
+        proposals.len(),
+        existence_seconds
+    ));
+    Ok(CompactModel {
+        primitives,
+        existence,
+        detection,
+        proposed: proposals.len(),
+        solution: decision.solution,
+        cap,
+        sample_spacing,
+        detect_seconds,
+        existence_seconds,
+    })
+}

@@ -1,0 +1,212 @@
+//! From grown regions to model parts: classify each region, and split the regions that
+//! no model explains.
+//!
+//! Region growing follows normals, and normals estimated from `k` neighbours turn
+//! gradually across a crease (over about one neighbourhood radius `R`); where the noise is
+//! large against `R`, the crease's residual is not much above the noise either, so a
+//! region can creep across it in small steps (a mug and the table it stands on). The
+//! models then catch what growing let through: a region that no model explains is
+//! **split** by peeling its dominant plane.
+//!
+//! 1. **Candidates.** The tangent planes (point, normal) of [`PLANE_CANDIDATES`]
+//!    samples spread over the flatter half of the region (by rank of flatness).
+//! 2. **Dominant plane.** The candidate with most samples within `t σ` of it, refitted
+//!    (least squares) on those samples, twice.
+//! 3. **Pieces.** The plane's inliers, cut into connected pieces over the growing
+//!    neighbourhoods; pieces of at least the smallest segment become parts (each
+//!    classified again: a plane, as a rule). The other samples, cut into connected
+//!    pieces as well, are classified or split in turn, down to [`MAX_SPLIT_DEPTH`].
+//! 4. A region whose dominant plane has no piece of the smallest segment's size is
+//!    **clutter**, as is what remains at the depth limit.
+
+use nalgebra::Point3;
+
+use super::classify::classify;
+use super::merge::Part;
+use super::normals::{Neighbourhoods, median};
+use super::plane::Moments;
+
+/// Tangent planes tried as the dominant plane of a region.
+pub const PLANE_CANDIDATES: usize = 8;
+
+/// Most nested splits of one region.
+pub const MAX_SPLIT_DEPTH: usize = 6;
+
+/// Least-squares refits of the dominant plane on its inliers.
+const PLANE_REFITS: usize = 2;
+
+/// Everything the parts of one detection are judged by.
+#[derive(Debug, Clone, Copy)]
+pub struct Splitter<'a> {
+    /// The samples.
+    pub samples: &'a [Point3<f64>],
+    /// Their neighbourhoods.
+    pub nb: &'a Neighbourhoods,
+    /// σ models are judged against, per sample (scene units).
+    pub model_sigma: &'a [f64],
+    /// Model tolerance `t`, in σ.
+    pub tolerance: f64,
+    /// Whether spheres are tried.
+    pub spheres: bool,
+    /// Smallest part, in samples.
+    pub min_points: usize,
+    /// Neighbours that connect samples (the growing neighbourhood).
+    pub neighbours: usize,
+}
+
+impl Splitter<'_> {
+    /// The parts of the region `ids` (ascending sample indices): one classified part, or
+    /// the pieces of its splits (module docs).
+    pub fn parts(&self, ids: Vec<usize>) -> Vec<Part> {
+        let mut out = Vec::new();
+        self.split(ids, 0, &mut out);
+        out
+    }
+
+    /// The part of `ids` with its model (`None`: clutter).
+    fn part(&self, ids: Vec<usize>) -> Part {
+        let sigma = self.noise(&ids);
+        let c = classify(
+            self.samples,
+            &self.nb.normals,
+            &ids,
+            sigma,
+            self.tolerance,
+            self.spheres,
+        );
+        let moments = Moments::of(self.samples, &ids);
+        Part {
+            ids,
+            model: c.model,
+            rms: c.rms,
+            sigma,
+            moments,
+        }
+    }
+
+    /// Step 1–4 of the module docs on `ids` at nesting `depth`, parts pushed to `out`.
+    fn split(&self, ids: Vec<usize>, depth: usize, out: &mut Vec<Part>) {
+        let part = self.part(ids);
+        if part.model.is_some() || depth >= MAX_SPLIT_DEPTH || part.ids.len() < 2 * self.min_points
+        {
+            out.push(part);
+            return;
+        }
+        let limit = self.tolerance * part.sigma;
+        let Some(inlier) = self.dominant_plane(&part.ids, limit) else {
+            out.push(part);
+            return;
+        };
+        let (on, off): (Vec<usize>, Vec<usize>) = part.ids.iter().partition(|&&i| inlier[i]);
+        let pieces: Vec<Vec<usize>> = self
+            .components(&on)
+            .into_iter()
+            .filter(|c| c.len() >= self.min_points)
+            .collect();
+        if pieces.is_empty() {
+            out.push(part);
+            return;
+        }
+        let mut taken = vec![false; self.samples.len()];
+        for piece in pieces {
+            for &i in &piece {
+                taken[i] = true;
+            }
+            self.split(piece, depth + 1, out);
+        }
+        let rest: Vec<usize> = on.into_iter().chain(off).filter(|&i| !taken[i]).collect();
+        let mut rest = rest;
+        rest.sort_unstable();
+        for piece in self.components(&rest) {
+            if piece.len() >= self.min_points {
+                self.split(piece, depth + 1, out);
+            }
+        }
+    }
+
+    /// Membership (over all samples) of the inliers of the dominant plane of `ids`
+    /// within `limit` (scene units), or `None` when no candidate plane exists.
+    fn dominant_plane(&self, ids: &[usize], limit: f64) -> Option<Vec<bool>> {
+        let mut by_flatness: Vec<usize> = ids.to_vec();
+        by_flatness.sort_by(|&a, &b| {
+            self.nb.flatness[a]
+                .total_cmp(&self.nb.flatness[b])
+                .then(a.cmp(&b))
+        });
+        let half = by_flatness.len().div_ceil(2);
+        let within = |point: &Point3<f64>, normal: &nalgebra::Vector3<f64>| -> Vec<usize> {
+            ids.iter()
+                .copied()
+                .filter(|&i| (self.samples[i] - point).dot(normal).abs() <= limit)
+                .collect()
+        };
+        let mut best: Option<Vec<usize>> = None;
+        for c in 0..PLANE_CANDIDATES {
+            let seed = by_flatness[c * half / PLANE_CANDIDATES];
+            let normal = self.nb.normals[seed];
+            if normal == nalgebra::Vector3::zeros() {
+                continue;
+            }
+            let inliers = within(&self.samples[seed], &normal);
+            if best.as_ref().is_none_or(|b| inliers.len() > b.len()) {
+                best = Some(inliers);
+            }
+        }
+        let mut inliers = best?;
+        for _ in 0..PLANE_REFITS {
+            let Some(fit) = Moments::of(self.samples, &inliers).plane() else {
+                break;
+            };
+            inliers = within(&fit.point, &fit.normal);
+        }
+        let mut member = vec![false; self.samples.len()];
+        for i in inliers {
+            member[i] = true;
+        }
+        Some(member)
+    }
+
+    /// The connected pieces of `ids` (ascending) over the growing neighbourhoods, each
+    /// ascending, in order of their lowest sample.
+    fn components(&self, ids: &[usize]) -> Vec<Vec<usize>> {
+        let mut inside = std::collections::HashMap::with_capacity(ids.len());
+        for (k, &i) in ids.iter().enumerate() {
+            inside.insert(i, k);
+        }
+        let mut seen = vec![false; ids.len()];
+        let take = self.neighbours.min(self.nb.k.saturating_sub(1));
+        let mut pieces = Vec::new();
+        let mut stack = Vec::new();
+        for start in 0..ids.len() {
+            if seen[start] {
+                continue;
+            }
+            seen[start] = true;
+            stack.push(ids[start]);
+            let mut piece = Vec::new();
+            while let Some(i) = stack.pop() {
+                piece.push(i);
+                for &j in &self.nb.row(i)[1..=take] {
+                    if let Some(&k) = inside.get(&(j as usize))
+                        && !seen[k]
+                    {
+                        seen[k] = true;
+                        stack.push(j as usize);
+                    }
+                }
+            }
+            piece.sort_unstable();
+            pieces.push(piece);
+        }
+        pieces
+    }
+
+    /// A part's noise: the median of the model σ over its samples, or the median residual
+    /// of its samples where that is larger.
+    fn noise(&self, ids: &[usize]) -> f64 {
+        let mut s: Vec<f64> = ids.iter().map(|&i| self.model_sigma[i]).collect();
+        let mut r: Vec<f64> = ids.iter().map(|&i| self.nb.residual[i]).collect();
+        let local = median(&mut s).unwrap_or(0.0);
+        median(&mut r).unwrap_or(0.0).max(local)
+    }
+}

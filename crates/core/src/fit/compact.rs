@@ -1,0 +1,96 @@
+//! The default pipeline (`types` auto): the compact model of [`crate::compact`] as a
+//! [`FitResult`], with its settings.
+
+use nalgebra::{Point3, UnitQuaternion};
+
+use super::budget::physical_memory;
+use super::options::{DEFAULT_MEMORY_SHARE, FitOptions};
+use super::settings::{CompactSettings, MethodSettings};
+use super::{FitResult, FitStats, Settings};
+use crate::chamfer::ChamferOptions;
+use crate::compact::{CompactModel, CompactOptions, EXISTENCE_BETA, compact_model};
+use crate::progress::Progress;
+use crate::spatial::PointIndex;
+use crate::{PointCloud, Result, check};
+
+/// The compact model of `cloud` under `options` (its `cap`, `sample_spacing`, `solver`,
+/// `seed` and `memory_budget` apply; the lattice options play no part).
+pub(super) fn fit_compact(
+    cloud: &PointCloud,
+    index: &PointIndex,
+    options: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<FitResult> {
+    if let Some(cap) = options.cap {
+        check::non_negative("cap", cap)?;
+    }
+    if let Some(s) = options.sample_spacing {
+        check::positive("sample_spacing", s)?;
+    }
+    let compact = CompactOptions {
+        cap: options.cap,
+        sample_spacing: options.sample_spacing,
+        solver: options.solver.clone(),
+        ..Default::default()
+    };
+    let model = compact_model(&cloud.points, index, &compact, progress)?;
+    let settings = compact_settings(options, &model);
+    let stats = FitStats {
+        points: cloud.len(),
+        lattice_candidates: model.proposed,
+        candidates: model.proposed,
+        lattice_seconds: model.detect_seconds,
+        solve_seconds: model.existence_seconds,
+        passes: 1,
+        ..Default::default()
+    };
+    Ok(FitResult {
+        settings,
+        primitives: model.primitives,
+        existence: model.existence,
+        solution: model.solution,
+        stats,
+        mcmc: None,
+    })
+}
+
+/// The settings a compact model was made with.
+fn compact_settings(options: &FitOptions, model: &CompactModel) -> Settings {
+    let detection = &model.detection;
+    let chamfer = ChamferOptions {
+        cap: model.cap * model.cap,
+        surface_distance: true,
+        beta: Some(EXISTENCE_BETA),
+        ..Default::default()
+    };
+    Settings {
+        kinds: Vec::new(),
+        size: 0.0,
+        radius: 0.0,
+        bend: 0.0,
+        spacing: 0.0,
+        origin: Point3::origin(),
+        frame: UnitQuaternion::identity(),
+        frame_source: "auto",
+        frame_support: None,
+        noise: detection.model_noise,
+        refine: None,
+        sample_spacing: model.sample_spacing,
+        point_spacing: detection.spacing,
+        cap: model.cap,
+        chamfer,
+        solver: options.solver.clone(),
+        seed: options.seed,
+        memory_budget: options
+            .memory_budget
+            .unwrap_or_else(|| (physical_memory() as f64 * DEFAULT_MEMORY_SHARE) as u64),
+        mesh: None,
+        method: MethodSettings::Compact(CompactSettings {
+            segments: detection.segments.len(),
+            proposed: model.proposed,
+            growing_noise: detection.noise,
+            angle_degrees: detection.angle.to_degrees(),
+            voxel: detection.voxel,
+        }),
+    }
+}
