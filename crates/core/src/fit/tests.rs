@@ -203,7 +203,11 @@ fn result_json_reads_back_to_the_same_result() {
     let c = corner();
     let no_meshes = |_: &str| -> Result<crate::atlas::MeshShape> { unreachable!("no meshes") };
     for options in [
+        // The default: the compact model (types auto).
+        FitOptions::default(),
+        // A refined lattice of squares.
         FitOptions {
+            kinds: vec![ShapeKind::Square],
             size: Some(1.0),
             ..FitOptions::default()
         },
@@ -248,6 +252,8 @@ fn result_json_reads_back_to_the_same_result() {
         );
         assert_eq!(s.solver.search_points, t.solver.search_points);
     }
+    let auto = fit(&c, &FitOptions::default(), &Silent).unwrap();
+    assert!(matches!(auto.settings.method, MethodSettings::Compact(_)));
     // What is not a fit's result is refused, naming the part.
     let bad = serde_json::json!({"settings": {}, "metrics": {}, "primitives": []});
     let e = FitResult::from_json(&bad, &no_meshes).unwrap_err();
