@@ -156,12 +156,12 @@ def test_fit_errors():
         primfit.fit(np.full((5, 3), np.nan))
     with pytest.raises(ValueError):
         primfit.fit(cloud, types=["blob"])
-    with pytest.raises(ValueError):
-        primfit.fit(cloud, size=-1.0)
+    with pytest.raises(ValueError, match="size"):
+        primfit.fit(cloud, types="square", size=-1.0)  # (the compact model has no size)
     with pytest.raises(ValueError, match="mesh"):
         primfit.fit(cloud, types="mesh")
     with pytest.raises(ValueError, match="too large"):
-        primfit.fit(cloud, size=0.5, memory_budget=10)
+        primfit.fit(cloud, types="square", size=0.5, memory_budget=10)
     with pytest.raises(TypeError):
         primfit.fit(cloud, sizes=1.0)  # unknown option
 

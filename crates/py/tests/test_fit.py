@@ -17,9 +17,10 @@ import primfit
 
 REPO = Path(__file__).resolve().parents[3]
 
-# The plain lattice pipeline (`primfit fit --frame axis --no-refine`): primitives exactly on
-# the lattice, which these tests compare with other solutions of the same loss.
-LATTICE = {"frame": "axis", "refine": False}
+# The plain lattice pipeline (`primfit fit --types square --frame axis --no-refine`):
+# primitives exactly on the lattice, which these tests compare with other solutions of the
+# same loss (the default, types auto, is the compact model: no lattice).
+LATTICE = {"types": "square", "frame": "axis", "refine": False}
 
 
 def corner() -> np.ndarray:
@@ -66,7 +67,7 @@ def test_fit_result_round_trip():
 def test_fit_options_reach_the_core():
     cloud = corner()
     result = primfit.fit(
-        cloud, types="square", size=1.0, spacing=0.5, model="independent", alpha=5, beta=3,
+        cloud, size=1.0, spacing=0.5, model="independent", alpha=5, beta=3,
         cap=0.4, weights=(1.0, 2.0), parameterization="logit", max_iterations=50, seed=7,
         origin=(0, 0, 0), **LATTICE,
     )
@@ -93,7 +94,8 @@ def test_mesh_type_with_an_array_mesh():
     vertices = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], dtype=float)
     faces = np.array([[0, 1, 2], [0, 2, 3]])
     cloud = corner()[:1600]  # the floor only
-    result = primfit.fit(cloud, types=["mesh"], mesh_model=(vertices, faces), size=1.0, spacing=0.5, **LATTICE)
+    options = {**LATTICE, "types": ["mesh"]}
+    result = primfit.fit(cloud, mesh_model=(vertices, faces), size=1.0, spacing=0.5, **options)
     assert result.primitives and all(q["type"] == "mesh" for q in result.primitives)
     assert result.metrics["point_to_model_mean"] < 0.01
 
@@ -160,7 +162,8 @@ def test_cli_fit_gives_the_same_result(tmp_path):
     primfit.write_ply(scene, cloud)
     out = tmp_path / "result.json"
     run = subprocess.run(
-        [str(cli), "fit", str(scene), "-o", str(out), "--size", "1", "--frame", "axis", "--no-refine", "--quiet"],
+        [str(cli), "fit", str(scene), "-o", str(out), "--types", "square", "--size", "1", "--frame", "axis",
+         "--no-refine", "--quiet"],
         capture_output=True,
         text=True
     )
@@ -210,10 +213,11 @@ def test_every_fit_option_reaches_the_core(tmp_path):
     # A frame file (here an earlier result) is read as `--frame FILE` does.
     earlier = tmp_path / "earlier.json"
     earlier.write_text(primfit.fit(cloud, size=1.0, **LATTICE).to_json())
-    assert primfit.fit(cloud, size=1.0, frame=str(earlier), refine=False).settings["frame"]["source"] == "given"
+    again = primfit.fit(cloud, types="square", size=1.0, frame=str(earlier), refine=False)
+    assert again.settings["frame"]["source"] == "given"
     # The method's own options; mcmc needs sensor origins.
     with pytest.raises(ValueError, match="sensor"):
-        primfit.fit(cloud, size=1.0, method="mcmc", steps=10)
+        primfit.fit(cloud, types="square", size=1.0, method="mcmc", steps=10)
     with pytest.raises(ValueError, match="method"):
         primfit.fit(cloud, method="annealing")
     with pytest.raises(OSError, match="sideways"):  # neither auto, axis nor a file
