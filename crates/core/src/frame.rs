@@ -29,7 +29,7 @@ use std::f64::consts::TAU;
 use nalgebra::{Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use crate::surface::LocalPlane;
 use crate::{Error, Primitive, Result};
@@ -167,14 +167,6 @@ pub struct FrameEstimate {
     /// Share of the flattest half of the normals within √2 times the kernel angle (≈ 14°)
     /// of a frame axis, in [0, 1]: near 1 for rooms, lower for tubes and free-form objects.
     pub support: f64,
-}
-
-impl FrameEstimate {
-    /// `{"rotation": [w, x, y, z], "support": s}` for `settings.frame`.
-    pub fn to_json(&self, source: &str) -> Value {
-        let q = self.rotation.quaternion();
-        json!({ "source": source, "rotation": [q.w, q.i, q.j, q.k], "support": self.support })
-    }
 }
 
 /// κ(c) of the module docs for `c = n · e`.
@@ -438,6 +430,7 @@ fn low_end(points: &[Point3<f64>], axis: &Vector3<f64>) -> f64 {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde_json::json;
 
     fn plane(n: Vector3<f64>, at: Vector3<f64>) -> LocalPlane {
         LocalPlane {

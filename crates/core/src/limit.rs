@@ -3,6 +3,8 @@
 
 use std::fmt;
 
+use serde::{Deserialize, Deserializer, Serialize, Serializer};
+
 use crate::{Error, Result};
 
 /// A count that may be unlimited: every item, or at most `n` (`n ≥ 1`).
@@ -60,6 +62,59 @@ impl fmt::Display for Limit {
     }
 }
 
+impl Serialize for Limit {
+    /// `"inf"` or the count.
+    fn serialize<S: Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        match self {
+            Limit::All => s.serialize_str("inf"),
+            Limit::At(n) => s.serialize_u64(*n as u64),
+        }
+    }
+}
+
+/// A limit as JSON writes it: a count or a word.
+#[derive(Deserialize)]
+#[serde(untagged)]
+enum LimitText {
+    Count(u64),
+    Word(String),
+}
+
+impl<'de> Deserialize<'de> for Limit {
+    /// `"inf"` (`"all"`, `"none"`) or a count of at least 1.
+    fn deserialize<D: Deserializer<'de>>(d: D) -> std::result::Result<Self, D::Error> {
+        let text = match LimitText::deserialize(d)? {
+            LimitText::Count(n) => n.to_string(),
+            LimitText::Word(w) => w,
+        };
+        Limit::parse("limit", &text).map_err(serde::de::Error::custom)
+    }
+}
+
+/// Serde of a [`Limit`] as `result.json` writes `search_points`: the count, and
+/// [`Limit::All`] as the largest count (`18446744073709551615`) as it always has been;
+/// `"inf"` is read too.
+pub mod as_count {
+    use serde::{Deserialize, Deserializer, Serializer};
+
+    use super::{Limit, LimitText};
+
+    /// Writes the count, `u64::MAX` for [`Limit::All`].
+    pub fn serialize<S: Serializer>(l: &Limit, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_u64(l.get().map_or(u64::MAX, |n| n as u64))
+    }
+
+    /// Reads a count (`u64::MAX` or more: [`Limit::All`]) or `"inf"`.
+    pub fn deserialize<'de, D: Deserializer<'de>>(d: D) -> Result<Limit, D::Error> {
+        match LimitText::deserialize(d)? {
+            LimitText::Count(n) if n == u64::MAX || usize::try_from(n).is_err() => Ok(Limit::All),
+            LimitText::Count(n) => Limit::parse("limit", &n.to_string()),
+            LimitText::Word(w) => Limit::parse("limit", &w),
+        }
+        .map_err(serde::de::Error::custom)
+    }
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -80,5 +135,26 @@ mod tests {
         assert_eq!(Limit::from_bound(Limit::At(4).get()), Limit::At(4));
         assert!(Limit::At(4).exceeded_by(5) && !Limit::At(4).exceeded_by(4));
         assert!(!Limit::All.exceeded_by(usize::MAX));
+    }
+
+    #[test]
+    fn json_spells_all_as_inf_and_reads_it_back() {
+        let text = serde_json::to_string(&[Limit::All, Limit::At(32)]).unwrap();
+        assert_eq!(text, r#"["inf",32]"#);
+        let back: Vec<Limit> = serde_json::from_str(r#"["inf", 32, "all"]"#).unwrap();
+        assert_eq!(back, [Limit::All, Limit::At(32), Limit::All]);
+        assert!(serde_json::from_str::<Limit>("0").is_err());
+        assert!(serde_json::from_str::<Limit>(r#""many""#).is_err());
+        #[derive(serde::Serialize, serde::Deserialize, PartialEq, Debug)]
+        struct Solver {
+            #[serde(with = "as_count")]
+            points: Limit,
+        }
+        let all = serde_json::to_string(&Solver { points: Limit::All }).unwrap();
+        assert_eq!(all, r#"{"points":18446744073709551615}"#);
+        for text in [all.as_str(), r#"{"points":"inf"}"#] {
+            let back: Solver = serde_json::from_str(text).unwrap();
+            assert_eq!(back.points, Limit::All);
+        }
     }
 }

@@ -22,10 +22,12 @@
 
 use nalgebra::Point3;
 use rayon::prelude::*;
-use serde_json::{Map, Value};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
 
 use crate::atlas::Shape;
 use crate::cloud::bounds_of;
+use crate::io::json::nan_as_null;
 use crate::spatial::{PointIndex, PrimitiveIndex};
 use crate::{Error, Primitive, Result, check};
 
@@ -244,7 +246,9 @@ pub struct MetricsOptions {
 }
 
 /// The measures of DESIGN §4 for one model against one cloud (see the module docs).
-#[derive(Debug, Clone, PartialEq)]
+/// Serde reads and writes the flat JSON of [`Metrics::to_json`].
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[serde(into = "MetricsDoc", from = "MetricsDoc")]
 pub struct Metrics {
     /// Number of input points.
     pub points: usize,
@@ -275,32 +279,95 @@ pub struct Metrics {
 impl Metrics {
     /// Flat JSON object with the keys of the module table (plus `points`, `primitives`,
     /// `sample_spacing`); `precision`, `recall`, `scene_accuracy` only with a truth.
-    /// Non-finite values are written as `null`.
+    /// Non-finite values are written as `null` (and read back as NaN).
     pub fn to_json(&self) -> Value {
-        let mut m = Map::new();
-        let mut put = |k: &str, v: f64| {
-            m.insert(
-                k.into(),
-                serde_json::Number::from_f64(v).map_or(Value::Null, Value::Number),
-            );
-        };
-        put("point_to_model_mean", self.point_to_model_mean);
-        put("point_to_model_p95", self.point_to_model_p95);
-        put("point_to_model_max", self.point_to_model_max);
-        put("model_to_point_mean", self.model_to_point_mean);
-        put("coverage", self.coverage);
-        put("coverage_tau", self.coverage_tau);
-        put("chamfer", self.chamfer);
-        put("compactness", self.compactness);
-        put("sample_spacing", self.sample_spacing);
-        if let Some(t) = &self.truth {
-            put("precision", t.precision);
-            put("recall", t.recall);
-            put("scene_accuracy", t.scene_accuracy);
+        serde_json::to_value(self).unwrap_or(Value::Null)
+    }
+}
+
+/// The JSON form of [`Metrics`] (`result.json`'s `"metrics"`). The matched pairs of a
+/// truth are not written; read back, a truth has none.
+#[derive(Serialize, Deserialize)]
+struct MetricsDoc {
+    points: usize,
+    primitives: usize,
+    #[serde(with = "nan_as_null")]
+    point_to_model_mean: f64,
+    #[serde(with = "nan_as_null")]
+    point_to_model_p95: f64,
+    #[serde(with = "nan_as_null")]
+    point_to_model_max: f64,
+    #[serde(with = "nan_as_null")]
+    model_to_point_mean: f64,
+    #[serde(with = "nan_as_null")]
+    coverage: f64,
+    #[serde(with = "nan_as_null")]
+    coverage_tau: f64,
+    #[serde(with = "nan_as_null")]
+    chamfer: f64,
+    #[serde(with = "nan_as_null")]
+    compactness: f64,
+    #[serde(with = "nan_as_null")]
+    sample_spacing: f64,
+    #[serde(flatten, skip_serializing_if = "Option::is_none")]
+    truth: Option<TruthDoc>,
+}
+
+/// The scores of a [`Matching`] in `"metrics"`.
+#[derive(Serialize, Deserialize)]
+struct TruthDoc {
+    #[serde(with = "nan_as_null")]
+    precision: f64,
+    #[serde(with = "nan_as_null")]
+    recall: f64,
+    #[serde(with = "nan_as_null")]
+    scene_accuracy: f64,
+}
+
+impl From<Metrics> for MetricsDoc {
+    fn from(m: Metrics) -> Self {
+        MetricsDoc {
+            points: m.points,
+            primitives: m.primitives,
+            point_to_model_mean: m.point_to_model_mean,
+            point_to_model_p95: m.point_to_model_p95,
+            point_to_model_max: m.point_to_model_max,
+            model_to_point_mean: m.model_to_point_mean,
+            coverage: m.coverage,
+            coverage_tau: m.coverage_tau,
+            chamfer: m.chamfer,
+            compactness: m.compactness,
+            sample_spacing: m.sample_spacing,
+            truth: m.truth.map(|t| TruthDoc {
+                precision: t.precision,
+                recall: t.recall,
+                scene_accuracy: t.scene_accuracy,
+            }),
         }
-        m.insert("points".into(), self.points.into());
-        m.insert("primitives".into(), self.primitives.into());
-        Value::Object(m)
+    }
+}
+
+impl From<MetricsDoc> for Metrics {
+    fn from(m: MetricsDoc) -> Self {
+        Metrics {
+            points: m.points,
+            primitives: m.primitives,
+            point_to_model_mean: m.point_to_model_mean,
+            point_to_model_p95: m.point_to_model_p95,
+            point_to_model_max: m.point_to_model_max,
+            model_to_point_mean: m.model_to_point_mean,
+            coverage: m.coverage,
+            coverage_tau: m.coverage_tau,
+            chamfer: m.chamfer,
+            compactness: m.compactness,
+            sample_spacing: m.sample_spacing,
+            truth: m.truth.map(|t| Matching {
+                pairs: Vec::new(),
+                precision: t.precision,
+                recall: t.recall,
+                scene_accuracy: t.scene_accuracy,
+            }),
+        }
     }
 }
 

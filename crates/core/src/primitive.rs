@@ -3,14 +3,17 @@
 //! it ([`Primitive::first_hit`], a [`Hit`]).
 
 use nalgebra::{Point3, UnitQuaternion, Vector3};
-use serde_json::{Value, json};
+use serde::{Deserialize, Serialize};
+use serde_json::Value;
 
 use crate::atlas::{MeshShape, PlaneShape, Shape, ShapeKind, TriMesh};
-use crate::{Error, Result};
+use crate::{Error, Result, check};
 
 /// A similarity transform from a shape's local frame to scene coordinates:
-/// `x_scene = scale · R · x_local + translation`.
-#[derive(Debug, Clone, Copy, PartialEq)]
+/// `x_scene = scale · R · x_local + translation`. Serde reads and writes it as DESIGN §3
+/// JSON (see [`Pose::from_json`]).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[serde(into = "PoseDoc", try_from = "PoseDoc")]
 pub struct Pose {
     /// Rotation `R` (JSON: unit quaternion `[w, x, y, z]`).
     pub rotation: UnitQuaternion<f64>,
@@ -84,37 +87,77 @@ impl Pose {
     pub fn from_json(v: &Value) -> Result<Pose> {
         let t = numbers(v.get("translation"), 3, "pose.translation")?;
         let q = numbers(v.get("rotation"), 4, "pose.rotation")?;
-        let quaternion = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
+        let scale = match v.get("scale") {
+            None | Some(Value::Null) => None,
+            Some(s) => Some(
+                s.as_f64()
+                    .ok_or_else(|| Error::out_of_range("pose.scale", s, "a positive number"))?,
+            ),
+        };
+        Pose::checked(PoseDoc {
+            translation: [t[0], t[1], t[2]],
+            rotation: [q[0], q[1], q[2], q[3]],
+            scale,
+        })
+    }
+
+    /// The pose of a parsed [`PoseDoc`]: the quaternion normalised (a zero one is an
+    /// error), the scale positive (default 1).
+    fn checked(doc: PoseDoc) -> Result<Pose> {
+        let [w, i, j, k] = doc.rotation;
+        let quaternion = nalgebra::Quaternion::new(w, i, j, k);
         if quaternion.norm().is_nan() || quaternion.norm() <= 1e-12 {
             let expected = "a non-zero quaternion [w, x, y, z]";
+            let value = format!("{:?}", doc.rotation);
+            return Err(Error::out_of_range("pose.rotation", value, expected));
+        }
+        check::finite("pose.translation", &doc.translation)?;
+        let scale = doc.scale.unwrap_or(1.0);
+        if !(scale.is_finite() && scale > 0.0) {
             return Err(Error::out_of_range(
-                "pose.rotation",
-                format!("{q:?}"),
-                expected,
+                "pose.scale",
+                scale,
+                "a positive number",
             ));
         }
-        let scale = match v.get("scale") {
-            None | Some(Value::Null) => 1.0,
-            Some(s) => s
-                .as_f64()
-                .filter(|s| s.is_finite() && *s > 0.0)
-                .ok_or_else(|| Error::out_of_range("pose.scale", s, "a positive number"))?,
-        };
         Ok(Pose {
             rotation: UnitQuaternion::from_quaternion(quaternion),
-            translation: Vector3::new(t[0], t[1], t[2]),
+            translation: Vector3::from(doc.translation),
             scale,
         })
     }
 
     /// The pose as DESIGN §3 JSON.
     pub fn to_json(&self) -> Value {
-        let q = self.rotation.quaternion();
-        json!({
-            "translation": [self.translation.x, self.translation.y, self.translation.z],
-            "rotation": [q.w, q.i, q.j, q.k],
-            "scale": self.scale,
-        })
+        serde_json::to_value(self).unwrap_or(Value::Null)
+    }
+}
+
+/// DESIGN §3 pose JSON: `translation` `[x, y, z]`, `rotation` `[w, x, y, z]`, `scale`
+/// (read as 1 when absent or null).
+#[derive(Debug, Clone, Copy, Serialize, Deserialize)]
+struct PoseDoc {
+    translation: [f64; 3],
+    rotation: [f64; 4],
+    #[serde(default)]
+    scale: Option<f64>,
+}
+
+impl From<Pose> for PoseDoc {
+    fn from(p: Pose) -> Self {
+        let q = p.rotation.quaternion();
+        PoseDoc {
+            translation: p.translation.into(),
+            rotation: [q.w, q.i, q.j, q.k],
+            scale: Some(p.scale),
+        }
+    }
+}
+
+impl TryFrom<PoseDoc> for Pose {
+    type Error = Error;
+    fn try_from(doc: PoseDoc) -> Result<Pose> {
+        Pose::checked(doc)
     }
 }
 
@@ -284,13 +327,41 @@ impl Primitive {
     /// DESIGN §3 JSON entry (without `existence`, which the caller adds); a plane adds
     /// its `outline` and `holes` (local frame, see [`Primitive::from_json`]).
     pub fn to_json(&self) -> Value {
-        let mut v = json!({ "type": self.shape.kind().name(), "size": self.shape.sizes_json(), "pose": self.pose.to_json() });
-        if let Shape::Plane(p) = &self.shape {
-            let (outline, holes) = p.rings_json();
-            v["outline"] = outline;
-            v["holes"] = holes;
+        serde_json::to_value(self).unwrap_or(Value::Null)
+    }
+}
+
+impl Serialize for Primitive {
+    /// The DESIGN §3 entry: `type`, `size` (the shape's sizes), `pose`, and for a plane
+    /// its `outline` and `holes`. Reading one back needs a mesh loader:
+    /// [`Primitive::from_json`].
+    fn serialize<S: serde::Serializer>(&self, s: S) -> std::result::Result<S::Ok, S::Error> {
+        #[derive(Serialize)]
+        struct Entry<'a> {
+            #[serde(rename = "type")]
+            kind: &'static str,
+            size: Value,
+            pose: &'a Pose,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            outline: Option<Value>,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            holes: Option<Value>,
         }
-        v
+        let (outline, holes) = match &self.shape {
+            Shape::Plane(p) => {
+                let (outline, holes) = p.rings_json();
+                (Some(outline), Some(holes))
+            }
+            _ => (None, None),
+        };
+        Entry {
+            kind: self.shape.kind().name(),
+            size: self.shape.sizes_json(),
+            pose: &self.pose,
+            outline,
+            holes,
+        }
+        .serialize(s)
     }
 }
 
@@ -339,6 +410,7 @@ fn mesh_normal(shape: &Shape, p: &Point3<f64>, dir: &Vector3<f64>) -> Vector3<f6
 #[cfg(test)]
 mod tests {
     use super::*;
+    use serde_json::json;
 
     #[test]
     fn json_round_trip_of_every_analytic_type() {
@@ -372,6 +444,30 @@ mod tests {
             let x = Point3::new(0.3, 0.2, -0.1);
             assert!((back.distance(&x) - p.distance(&x)).abs() < 1e-12);
         }
+    }
+
+    #[test]
+    fn poses_are_design_json_through_serde() {
+        let pose = Pose {
+            rotation: UnitQuaternion::from_euler_angles(0.1, 0.2, 0.3),
+            translation: Vector3::new(1.0, -2.0, 0.5),
+            scale: 1.5,
+        };
+        let v = serde_json::to_value(pose).unwrap();
+        let q = pose.rotation.quaternion();
+        assert_eq!(
+            v,
+            json!({"translation": [1.0, -2.0, 0.5], "rotation": [q.w, q.i, q.j, q.k], "scale": 1.5})
+        );
+        let back: Pose = serde_json::from_value(v.clone()).unwrap();
+        assert_eq!(back, Pose::from_json(&v).unwrap());
+        assert!(back.rotation.angle_to(&pose.rotation) < 1e-15);
+        let unscaled: Pose =
+            serde_json::from_value(json!({"translation": [0, 0, 0], "rotation": [2, 0, 0, 0]}))
+                .unwrap();
+        assert_eq!(unscaled, Pose::identity());
+        let zero = json!({"translation": [0, 0, 0], "rotation": [0, 0, 0, 0]});
+        assert!(serde_json::from_value::<Pose>(zero).is_err());
     }
 
     #[test]

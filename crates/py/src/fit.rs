@@ -7,7 +7,7 @@ use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2}
 use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::chamfer::{CandidateGeometry, Coefficients, PointModel};
 use primfit_core::fit::{
-    self as core_fit, FitOptions, McmcFitOptions, MethodOptions, Settings, parse_types,
+    self as core_fit, FitOptions, FitResult, McmcFitOptions, MethodOptions, Settings, parse_types,
 };
 use primfit_core::frame::FrameChoice;
 use primfit_core::lattice::CandidateSet;
@@ -271,6 +271,23 @@ pub fn fit<'py>(
     })?
     .py()?;
     Ok((json_text(&doc)?, existence.into_pyarray(py)))
+}
+
+/// Reads back a fit's `result.json` (checked against the library's schema,
+/// [`FitResult::from_json`]): the existence of each primitive. Mesh sources are read as
+/// paths.
+#[pyfunction]
+pub fn read_result<'py>(py: Python<'py>, text: &str) -> PyResult<Bound<'py, PyArray1<f64>>> {
+    let doc: serde_json::Value = serde_json::from_str(text)
+        .map_err(|e| PyValueError::new_err(format!("the result is not valid JSON: {e}")))?;
+    let existence = pool::detached(py, || -> Result<Vec<f64>> {
+        let load = |source: &str| -> Result<MeshShape> {
+            MeshShape::new(source, io::read_mesh(std::path::Path::new(source))?)
+        };
+        Ok(FitResult::from_json(&doc, &load)?.0.existence)
+    })?
+    .py()?;
+    Ok(existence.into_pyarray(py))
 }
 
 /// The candidates a fit of `cloud` with `options` would optimise over (the lattice after

@@ -21,7 +21,7 @@ mod _primfit {
     #[pymodule_export]
     use super::chamfer::{ChamferProblem, chamfer_problems};
     #[pymodule_export]
-    use super::fit::{PyFitOptions, candidates, fit, fit_problem};
+    use super::fit::{PyFitOptions, candidates, fit, fit_problem, read_result};
     #[pymodule_export]
     use super::io::{read_mesh, read_ply, write_mesh, write_ply};
     #[pymodule_export]

@@ -156,8 +156,8 @@ def test_fit_errors():
         primfit.fit(np.full((5, 3), np.nan))
     with pytest.raises(ValueError):
         primfit.fit(cloud, types=["blob"])
-    with pytest.raises(ValueError):
-        primfit.fit(cloud, size=-1.0)
+    with pytest.raises(ValueError, match="size"):
+        primfit.fit(cloud, types="square", size=-1.0)  # (the compact model has no size)
     with pytest.raises(ValueError, match="mesh"):
         primfit.fit(cloud, types="mesh")
     with pytest.raises(ValueError, match="too large"):

@@ -17,8 +17,9 @@ import primfit
 
 REPO = Path(__file__).resolve().parents[3]
 
-# The plain lattice pipeline (`primfit fit --frame axis --no-refine`): primitives exactly on
-# the lattice, which these tests compare with other solutions of the same loss.
+# The plain lattice pipeline (`primfit fit --types square --frame axis --no-refine`):
+# primitives exactly on the lattice, which these tests compare with other solutions of the
+# same loss (the default, types auto, is the compact model: no lattice).
 LATTICE = {"types": "square", "frame": "axis", "refine": False}
 
 
@@ -93,7 +94,8 @@ def test_mesh_type_with_an_array_mesh():
     vertices = np.array([[-0.5, -0.5, 0], [0.5, -0.5, 0], [0.5, 0.5, 0], [-0.5, 0.5, 0]], dtype=float)
     faces = np.array([[0, 1, 2], [0, 2, 3]])
     cloud = corner()[:1600]  # the floor only
-    result = primfit.fit(cloud, mesh_model=(vertices, faces), size=1.0, spacing=0.5, **{**LATTICE, "types": ["mesh"]})
+    options = {**LATTICE, "types": ["mesh"]}
+    result = primfit.fit(cloud, mesh_model=(vertices, faces), size=1.0, spacing=0.5, **options)
     assert result.primitives and all(q["type"] == "mesh" for q in result.primitives)
     assert result.metrics["point_to_model_mean"] < 0.01
 
@@ -160,8 +162,8 @@ def test_cli_fit_gives_the_same_result(tmp_path):
     primfit.write_ply(scene, cloud)
     out = tmp_path / "result.json"
     run = subprocess.run(
-        [str(cli), "fit", str(scene), "-o", str(out), "--types", "square", "--size", "1", "--frame", "axis", "--no-refine",
-         "--quiet"],
+        [str(cli), "fit", str(scene), "-o", str(out), "--types", "square", "--size", "1", "--frame", "axis",
+         "--no-refine", "--quiet"],
         capture_output=True,
         text=True
     )
@@ -211,10 +213,11 @@ def test_every_fit_option_reaches_the_core(tmp_path):
     # A frame file (here an earlier result) is read as `--frame FILE` does.
     earlier = tmp_path / "earlier.json"
     earlier.write_text(primfit.fit(cloud, size=1.0, **LATTICE).to_json())
-    assert primfit.fit(cloud, types="square", size=1.0, frame=str(earlier), refine=False).settings["frame"]["source"] == "given"
+    again = primfit.fit(cloud, types="square", size=1.0, frame=str(earlier), refine=False)
+    assert again.settings["frame"]["source"] == "given"
     # The method's own options; mcmc needs sensor origins.
     with pytest.raises(ValueError, match="sensor"):
-        primfit.fit(cloud, size=1.0, method="mcmc", steps=10)
+        primfit.fit(cloud, types="square", size=1.0, method="mcmc", steps=10)
     with pytest.raises(ValueError, match="method"):
         primfit.fit(cloud, method="annealing")
     with pytest.raises(OSError, match="sideways"):  # neither auto, axis nor a file
@@ -233,3 +236,26 @@ def test_mcmc_on_a_scanned_dict_as_read_ply_returns(tmp_path):
     s = result.settings
     assert s["method"] == "mcmc" and s["mcmc"]["steps"] == 500 and s["ray"]["sigma"] == 0.02
     assert "beta" not in s and result.primitives
+
+
+def test_fit_result_reads_back_from_json(tmp_path):
+    result = primfit.fit(corner(), size=1.0, **LATTICE)
+    for source in (result.to_json(), json.loads(result.to_json())):
+        back = primfit.FitResult.from_json(source)
+        assert back.primitives == result.primitives
+        assert (back.settings, back.metrics) == (result.settings, result.metrics)
+        np.testing.assert_array_equal(back.existence, result.existence)
+        assert json.loads(back.to_json()) == json.loads(result.to_json())
+    # A result the CLI wrote, with its extra settings (the scene), reads back as it is.
+    cli = cli_binary()
+    scene, out = tmp_path / "corner.ply", tmp_path / "result.json"
+    primfit.write_ply(scene, corner())
+    run = subprocess.run([str(cli), "fit", str(scene), "-o", str(out), "--size", "1", "--quiet"],
+                         capture_output=True, text=True)
+    assert run.returncode == 0, run.stderr
+    from_cli = primfit.FitResult.from_json(out.read_text())
+    assert from_cli.settings["scene"] == str(scene) and len(from_cli) == len(json.loads(out.read_text())["primitives"])
+    with pytest.raises(ValueError, match="settings"):
+        primfit.FitResult.from_json({"settings": {}, "metrics": {}, "primitives": []})
+    with pytest.raises(ValueError, match="JSON"):
+        primfit.FitResult.from_json("{")

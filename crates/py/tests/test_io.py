@@ -59,7 +59,7 @@ def test_fitted_mesh_round_trip(tmp_path):
     a = np.arange(20) * 0.05 + 0.025
     u, v = (m.ravel() for m in np.meshgrid(a, a, indexing="ij"))
     cloud = np.stack([u, v, np.zeros_like(u)], axis=1)
-    result = primfit.fit(cloud, types="square", size=1.0, frame="axis", refine=False)  # squares on the lattice
+    result = primfit.fit(cloud, types="square", size=1.0, frame="axis", refine=False)  # on the lattice
     assert len(result) >= 1
     for ascii in (False, True):
         path = tmp_path / f"fitted{int(ascii)}.ply"

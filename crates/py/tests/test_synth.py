@@ -49,7 +49,7 @@ def test_bad_scene_parameters():
 
 def test_fit_explains_a_noise_free_hallway_with_tiles_on_its_surfaces():
     points, truth = synth.hallway(length=4.0, width=2.0, height=2.0, jitter=0.0, density=200.0, seed=1)
-    # The plain lattice pipeline (scene axes, no refinement): squares exactly on the lattice.
+    # The plain lattice pipeline (squares, scene axes, no refinement): exactly on the lattice.
     result = primfit.fit(points, types="square", size=1.0, spacing=0.5, frame="axis", refine=False)
     assert result.metrics["point_to_model_max"] < 1e-9  # every point on a fitted square
     assert result.metrics["coverage"] == 1.0

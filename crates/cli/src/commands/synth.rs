@@ -8,7 +8,8 @@ use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::fit::result_json;
 use primfit_core::io::{self, Encoding};
 use primfit_core::synth::{self, Density, Misalignment, Noise, Scene};
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
 
 use super::sizes::SizeArgs;
 use super::{Output, check_output};
@@ -159,17 +160,59 @@ fn check_args(a: &SynthArgs) -> Result<()> {
     Ok(())
 }
 
+/// The scene-specific fields of a truth's settings (`settings.scene`).
+#[derive(Debug, Serialize)]
+#[serde(untagged)]
+enum SceneFields {
+    /// Hallway, pipe: none.
+    Plain {},
+    /// Nine cylinders: which exist.
+    NineCylinders { mask: u16 },
+    /// Six in a row: the one the points lie on.
+    SixInARow { true_index: usize },
+    /// Registration: the scene's counts.
+    Registration {
+        inliers: usize,
+        outliers: usize,
+        objects: usize,
+        translation: f64,
+    },
+}
+
+/// `settings` of a truth's `result.json`: the scene's parameters and lattice.
+#[derive(Debug, Serialize)]
+struct TruthSettings {
+    kind: Option<String>,
+    seed: u64,
+    jitter: Option<f64>,
+    drift: f64,
+    offset: f64,
+    angle_degrees: f64,
+    lattice: TruthLattice,
+    scene: SceneFields,
+}
+
+/// `settings.lattice` of a truth: the lattice its primitives lie on.
+#[derive(Debug, Serialize)]
+struct TruthLattice {
+    spacing: f64,
+    origin: [f64; 3],
+}
+
 /// The scene of `a.kind` with its parameters from `a` (the rest per-scene defaults),
 /// and the scene-specific fields of the truth's settings.
-fn generate(a: &SynthArgs) -> Result<(Scene, Value)> {
+fn generate(a: &SynthArgs) -> Result<(Scene, SceneFields)> {
     Ok(match a.kind {
-        Kind::Hallway => (hallway(a)?, json!({})),
-        Kind::Pipe => (pipe(a)?, json!({})),
+        Kind::Hallway => (hallway(a)?, SceneFields::Plain {}),
+        Kind::Pipe => (pipe(a)?, SceneFields::Plain {}),
         Kind::NineCylinders => {
             if a.mask > 511 {
                 bail!("--mask must be in 0..=511, got {}", a.mask);
             }
-            (nine_cylinders(a)?, json!({ "mask": a.mask }))
+            (
+                nine_cylinders(a)?,
+                SceneFields::NineCylinders { mask: a.mask },
+            )
         }
         Kind::SixInARow => {
             let d = synth::SixInARowParams::default();
@@ -180,12 +223,19 @@ fn generate(a: &SynthArgs) -> Result<(Scene, Value)> {
                 ..d
             };
             let six = synth::six_in_a_row(&p)?;
-            (six.scene, json!({ "true_index": six.true_index }))
+            let fields = SceneFields::SixInARow {
+                true_index: six.true_index,
+            };
+            (six.scene, fields)
         }
         Kind::Registration => (
             registration(a)?,
-            json!({ "inliers": a.inliers, "outliers": a.outliers,
-                "objects": a.objects, "translation": a.translation }),
+            SceneFields::Registration {
+                inliers: a.inliers,
+                outliers: a.outliers,
+                objects: a.objects,
+                translation: a.translation,
+            },
         ),
     })
 }
@@ -328,7 +378,7 @@ fn rescan(mut scene: Scene, frames: usize, a: &SynthArgs) -> Result<Scene> {
     Ok(scene)
 }
 
-fn write(a: &SynthArgs, scene: &Scene, extra: serde_json::Value) -> Result<()> {
+fn write(a: &SynthArgs, scene: &Scene, extra: SceneFields) -> Result<()> {
     let encoding = if a.ascii {
         Encoding::Ascii
     } else {
@@ -339,18 +389,27 @@ fn write(a: &SynthArgs, scene: &Scene, extra: serde_json::Value) -> Result<()> {
     let mut staged = None;
     if let Some(path) = &a.truth {
         let h = &scene.lattice;
-        let settings = json!({
-            "kind": a.kind.to_possible_value().map(|v| v.get_name().to_string()),
-            "seed": a.seed,
-            "jitter": a.jitter,
-            "drift": a.drift,
-            "offset": a.offset,
-            "angle_degrees": a.angle,
-            "lattice": { "spacing": h.spacing, "origin": [h.origin.x, h.origin.y, h.origin.z] },
-            "scene": extra,
-        });
+        let settings = TruthSettings {
+            kind: a.kind.to_possible_value().map(|v| v.get_name().to_string()),
+            seed: a.seed,
+            jitter: a.jitter,
+            drift: a.drift,
+            offset: a.offset,
+            angle_degrees: a.angle,
+            lattice: TruthLattice {
+                spacing: h.spacing,
+                origin: h.origin.coords.into(),
+            },
+            scene: extra,
+        };
         let existence = vec![1.0; scene.truth.len()];
-        let doc = result_json(settings, json!({}), &scene.truth, &existence);
+        let no_metrics = Value::Object(Default::default());
+        let doc = result_json(
+            serde_json::to_value(settings)?,
+            no_metrics,
+            &scene.truth,
+            &existence,
+        );
         staged = Some(io::stage_json(path, &doc).context("writing the truth")?);
     }
     io::write_cloud(&a.output, &scene.cloud, encoding)?;

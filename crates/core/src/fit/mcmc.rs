@@ -20,7 +20,7 @@
 
 use std::time::Instant;
 
-use super::{FitOptions, FitResult, FitStats, MethodSettings, Settings};
+use super::{FitOptions, FitResult, FitStats, McmcSettings, MethodSettings, Settings};
 use crate::chamfer::LossValue;
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
@@ -74,7 +74,7 @@ pub(super) fn fit_mcmc(
     let rays = check_cloud(cloud)?;
     let index = PointIndex::new(&cloud.points);
     let settings = Settings::resolve(cloud, &index, options)?;
-    let MethodSettings::Mcmc(mcmc) = &settings.method else {
+    let MethodSettings::Mcmc(mcmc) = settings.method.clone() else {
         return Err(Error::Unknown {
             what: "method of an mcmc fit",
             value: settings.method.name().into(),
@@ -112,6 +112,12 @@ pub(super) fn fit_mcmc(
         seed: settings.seed,
         polish: true,
     };
+    // The sampler's length, known now that the candidates are, is part of the settings used.
+    let settings = settings.with_method(MethodSettings::Mcmc(McmcSettings {
+        steps: Some(sampler.steps),
+        burn_in: Some(sampler.burn_in),
+        ..mcmc
+    }));
     let t2 = Instant::now();
     let rates = flip_rates(&table, &prior, &sampler)?;
     let run = sample(&table, &prior, &rates, &sampler, progress)?;
@@ -255,6 +261,13 @@ mod tests {
         assert_eq!(json["settings"]["method"], "mcmc");
         assert!(json["settings"].get("beta").is_none());
         assert!(json["settings"]["mcmc"]["accepted"].as_u64().unwrap() > 0);
+        let measures = crate::metrics::MetricsOptions::default();
+        let m = crate::metrics::evaluate(&cloud.points, &result.primitives, None, &measures);
+        let doc = result.to_json(m.unwrap().to_json());
+        let (back, m) = FitResult::from_json(&doc, &|_| unreachable!("no meshes")).unwrap();
+        assert_eq!(back.mcmc, result.mcmc);
+        assert_eq!(back.settings.method, result.settings.method);
+        assert_eq!(back.to_json(m.to_json()), doc);
         // Without sensor origins it says so.
         let bare = PointCloud::from_points(cloud.points.clone());
         let err = super::super::fit(&bare, &options, &Silent)

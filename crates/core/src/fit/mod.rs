@@ -12,12 +12,13 @@
 //! | re-aligned pass | `mod.rs` | with an estimated frame and refinement: the lattice re-aligned to the first pass's primitives, then pass and gaps again |
 //! | pick | `mod.rs` | of the two passes, the one with the lower [`binary_chamfer`] |
 //!
-//! What comes out is a [`FitResult`] (`result.rs`: stats, `result.json`, mesh). The
+//! What comes out is a [`FitResult`] (`result.rs`: stats, `result.json`, mesh; the JSON
+//! schema is [`document`]). The
 //! ray-likelihood method of thesis ch. 4 ([`MethodOptions::Mcmc`]) is a separate
 //! pipeline over the same settings (`mcmc.rs`).
 //!
-//! Defaults derived from the cloud (see `settings.rs`; the fixed ones are
-//! [`FitOptions::default`], `options.rs`):
+//! Defaults (those derived from the cloud are decided in `settings.rs`, the fixed ones are
+//! [`FitOptions::default`] in `options.rs`):
 //!
 //! | setting | default |
 //! |---|---|
@@ -28,14 +29,15 @@
 //! | `cap` | `max(spacing, 5σ)`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; on very noisy scans (noise σ, see below) a point within 5σ of a surface still counts as explained. `d_cap = cap²` |
 //! | noise σ | the median off-plane spread of the flattest half of the k = 32 nearest-neighbour neighbourhoods of up to 4 000 evenly strided points ([`crate::surface::noise_level`], [`crate::surface::NOISE_MAX_POINTS`]) |
 //! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
-//! | `beta` | 32 candidates per point (24 was the least that recovered every synthetic pipe) |
-//! | `alpha` | 10 samples per candidate (thesis §6.3), `independent` model only |
+//! | `beta` | 32 candidates per point ([`DEFAULT_BETA`]; 24 was the least that recovered every synthetic pipe) |
+//! | `alpha` | 10 samples per candidate ([`DEFAULT_ALPHA`], thesis §6.3), `independent` model only |
 //! | frame | `auto` ([`DEFAULT_FRAME`]): the scan's dominant axes ([`crate::frame::estimate_frame`]); [`FitOptions::lattice`] is the plain lattice on the scene axes, without refinement |
 //! | lattice origin | `axis`: the scene origin; `auto` and a given frame without origin: grid planes on the data ([`crate::frame::grid_origin`]) |
 //! | refinement | on ([`crate::refine::RefineOptions::default`]) |
 
 mod budget;
 mod compact;
+pub mod document;
 mod gaps;
 mod mcmc;
 mod options;

@@ -1,15 +1,18 @@
 //! What a fit returns: [`FitResult`] with its [`FitStats`], the `result.json` document,
 //! the primitives as one mesh, and the binary chamfer a result is judged by.
 
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
 
+use super::document::{PrimitiveEntry, ResultDoc, SettingsDoc};
 use super::{McmcRun, Settings};
-use crate::atlas::TriMesh;
+use crate::atlas::{MeshShape, TriMesh};
 use crate::chamfer::{ChamferOptions, Coefficients, Evaluator, LossValue};
 use crate::lattice::CandidateSet;
+use crate::metrics::Metrics;
 use crate::progress::Silent;
-use crate::solve::Solution;
-use crate::{PointCloud, Primitive, Result};
+use crate::solve::{Solution, StopReason};
+use crate::{Error, PointCloud, Primitive, Result};
 
 /// Size and timing facts of a fit, for the summary and the benchmark table.
 #[derive(Debug, Clone, Default)]
@@ -26,7 +29,7 @@ pub struct FitStats {
     pub bytes_per_entry: usize,
     /// Bytes held by the coefficients.
     pub coefficient_bytes: usize,
-    /// The peak estimate checked against the memory budget ([`estimate_bytes`]).
+    /// The peak estimate checked against the memory budget ([`super::estimate_bytes`]).
     pub estimated_bytes: u64,
     /// Seconds spent building the lattice.
     pub lattice_seconds: f64,
@@ -44,7 +47,7 @@ pub struct FitStats {
     pub filled: usize,
 }
 
-/// The result of [`fit`].
+/// The result of [`super::fit`].
 #[derive(Debug, Clone)]
 pub struct FitResult {
     /// Settings used.
@@ -64,23 +67,56 @@ pub struct FitResult {
 impl FitResult {
     /// `result.json` (DESIGN §3); `metrics` is inserted as given.
     pub fn to_json(&self, metrics: Value) -> Value {
-        let mut settings = self.settings.to_json();
-        if let (Some(run), Some(Value::Object(m))) = (&self.mcmc, settings.get_mut("mcmc")) {
-            let record = json!({
-                "steps": run.steps,
-                "burn_in": run.burn_in,
-                "accepted": run.accepted,
-                "polish_flips": run.polish_flips,
-                "log_likelihood": run.log_likelihood,
-                "log_posterior": run.log_posterior,
-                "frames": run.frames,
-                "skipped_points": run.skipped_points,
-            });
-            if let Value::Object(r) = record {
-                m.extend(r);
-            }
+        let settings = SettingsDoc::new(&self.settings, self.mcmc.as_ref());
+        document(settings, metrics, &self.primitives, &self.existence)
+    }
+
+    /// Reads back a `result.json` of a fit (as [`FitResult::to_json`] writes it): the
+    /// settings, the primitives with their existence, the mcmc run, and the measures.
+    /// `load` gives the mesh of a mesh source (the fit's `mesh_model`, mesh primitives).
+    /// What the document does not hold is empty: the solver's [`Solution`] (no
+    /// candidates), the [`FitStats`] but `points` (from the measures) and `passes` (1).
+    pub fn from_json(
+        doc: &Value,
+        load: &dyn Fn(&str) -> Result<MeshShape>,
+    ) -> Result<(FitResult, Metrics)> {
+        let part = |key: &'static str| doc.get(key).cloned().unwrap_or(Value::Null);
+        let settings: SettingsDoc = serde_json::from_value(part("settings"))
+            .map_err(|e| Error::json("settings", e.to_string()))?;
+        let metrics: Metrics = serde_json::from_value(part("metrics"))
+            .map_err(|e| Error::json("metrics", e.to_string()))?;
+        let (settings, mcmc) = settings.to_settings(load)?;
+        let entries = doc
+            .get("primitives")
+            .and_then(Value::as_array)
+            .ok_or_else(|| Error::json("primitives", "an array of primitives"))?;
+        let mut primitives = Vec::with_capacity(entries.len());
+        let mut existence = Vec::with_capacity(entries.len());
+        for (k, entry) in entries.iter().enumerate() {
+            primitives
+                .push(Primitive::from_json(entry, load).map_err(|e| e.in_item("primitive", k))?);
+            let p = entry
+                .get("existence")
+                .and_then(Value::as_f64)
+                .ok_or_else(|| {
+                    Error::json(format!("primitives[{k}].existence"), "a probability")
+                })?;
+            existence.push(p);
         }
-        result_json(settings, metrics, &self.primitives, &self.existence)
+        let stats = FitStats {
+            points: metrics.points,
+            passes: 1,
+            ..FitStats::default()
+        };
+        let result = FitResult {
+            settings,
+            primitives,
+            existence,
+            solution: unrecorded_solution(),
+            stats,
+            mcmc,
+        };
+        Ok((result, metrics))
     }
 
     /// All primitives as one mesh, with the primitive index of every face.
@@ -89,23 +125,53 @@ impl FitResult {
     }
 }
 
-/// The `result.json` document shared by `fit`, `synth --truth` and `register`.
+/// The solution of a result read from JSON, which records none: no candidates.
+fn unrecorded_solution() -> Solution {
+    Solution {
+        probability: Vec::new(),
+        exists: Vec::new(),
+        history: Vec::new(),
+        iterations: 0,
+        evaluations: 0,
+        stop: StopReason::Iterations,
+        thresholded: LossValue::default(),
+        binary: LossValue::default(),
+        flips: 0,
+    }
+}
+
+/// The `result.json` document shared by `fit`, `synth --truth` and `register`
+/// ([`ResultDoc`]): their own `settings` and `metrics`, and the primitives.
 pub fn result_json(
     settings: Value,
     metrics: Value,
     primitives: &[Primitive],
     existence: &[f64],
 ) -> Value {
-    let list: Vec<Value> = primitives
-        .iter()
-        .zip(existence)
-        .map(|(p, e)| {
-            let mut v = p.to_json();
-            v["existence"] = json!(e);
-            v
-        })
-        .collect();
-    json!({ "primfit": crate::VERSION, "settings": settings, "metrics": metrics, "primitives": list })
+    document(settings, metrics, primitives, existence)
+}
+
+/// [`ResultDoc`] as JSON.
+fn document(
+    settings: impl Serialize,
+    metrics: impl Serialize,
+    primitives: &[Primitive],
+    existence: &[f64],
+) -> Value {
+    let doc = ResultDoc {
+        primfit: crate::VERSION,
+        settings,
+        metrics,
+        primitives: primitives
+            .iter()
+            .zip(existence)
+            .map(|(primitive, &existence)| PrimitiveEntry {
+                primitive,
+                existence,
+            })
+            .collect(),
+    };
+    serde_json::to_value(doc).unwrap_or(Value::Null)
 }
 
 /// One triangle mesh of all `primitives`, and the index of the primitive of every face.

@@ -6,9 +6,10 @@
 //! its own ([`Settings::finer`], [`Settings::realigned`]).
 
 use nalgebra::{Point3, UnitQuaternion};
-use serde_json::{Value, json};
+use serde_json::Value;
 
 use super::budget::physical_memory;
+use super::document::SettingsDoc;
 use super::options::{FitOptions, McmcFitOptions, MethodOptions};
 use crate::atlas::{MeshShape, Shape, ShapeKind};
 use crate::chamfer::{ChamferOptions, PointModel};
@@ -62,7 +63,7 @@ pub struct Settings {
     pub solver: SolverOptions,
     /// Seed.
     pub seed: u64,
-    /// Budget for the estimated peak memory of a fit, bytes ([`estimate_bytes`]).
+    /// Budget for the estimated peak memory of a fit, bytes ([`super::estimate_bytes`]).
     pub memory_budget: u64,
     /// Mesh source, if the mesh type is used.
     pub mesh: Option<MeshShape>,
@@ -117,7 +118,7 @@ pub struct McmcSettings {
     /// `p(φ_i = 1)` of supported candidates.
     pub prior: f64,
     /// Proposals after burn-in; `None`: derived from the number of supported candidates
-    /// when they are known (the run's value is [`super::McmcRun::steps`]).
+    /// when they are known (a result's settings hold the value used).
     pub steps: Option<usize>,
     /// Proposals before counting; `None`: `steps / 5`.
     pub burn_in: Option<usize>,
@@ -374,9 +375,7 @@ impl Settings {
             chamfer,
             solver: o.solver.clone(),
             seed: o.seed,
-            memory_budget: o
-                .memory_budget
-                .unwrap_or_else(|| (physical_memory() as f64 * DEFAULT_MEMORY_SHARE) as u64),
+            memory_budget: o.memory_budget.unwrap_or_else(default_memory_budget),
             mesh: o.mesh.clone(),
             method,
         })
@@ -398,6 +397,15 @@ impl Settings {
         Settings {
             frame,
             origin,
+            ..self.clone()
+        }
+    }
+
+    /// These settings with the method's settings `method` (the mcmc sampler's length is
+    /// known only once its candidates are).
+    pub fn with_method(&self, method: MethodSettings) -> Settings {
+        Settings {
+            method,
             ..self.clone()
         }
     }
@@ -441,90 +449,15 @@ impl Settings {
         }
     }
 
-    /// Every setting as JSON (`result.json`'s `"settings"`).
+    /// Every setting as JSON (`result.json`'s `"settings"`, [`SettingsDoc`]).
     pub fn to_json(&self) -> Value {
-        let lim = |v: Option<usize>| v.map_or(Value::from("inf"), Value::from);
-        let frame = FrameEstimate {
-            rotation: self.frame,
-            support: self.frame_support.unwrap_or(f64::NAN),
-        }
-        .to_json(self.frame_source);
-        let refine = self.refine.as_ref().map(|r| {
-            json!({ "rounds": r.rounds, "iterations": r.iterations, "trim": r.trim.unwrap_or(self.cap),
-                    "max_growth": r.max_growth, "recheck": r.recheck, "merge": r.merge, "fill": r.fill,
-                    "retype": r.retype })
-        });
-        let mut doc = json!({
-            "types": self.kinds.iter().map(|k| k.name()).collect::<Vec<_>>(),
-            "size": self.size,
-            "radius": self.radius,
-            "bend": self.bend,
-            "spacing": self.spacing,
-            "origin": [self.origin.x, self.origin.y, self.origin.z],
-            "frame": frame,
-            "noise": self.noise,
-            "refine": refine,
-            "sample_spacing": self.sample_spacing,
-            "point_spacing": self.point_spacing,
-            "model": self.chamfer.model.name(),
-            "alpha": lim(self.chamfer.alpha),
-            "beta": lim(self.chamfer.beta),
-            "cap": self.cap,
-            "weights": [self.chamfer.primitive_weight, self.chamfer.point_weight],
-            "parameterization": self.solver.parameterization.name(),
-            "max_iterations": self.solver.max_iterations,
-            // `--search-points 0` (no limit) has always been written as the largest count.
-            "search_points": self.solver.search_points.get().unwrap_or(usize::MAX),
-            "threshold": self.solver.threshold,
-            "polish": self.solver.polish,
-            "method": self.method.name(),
-            "seed": self.seed,
-            "mesh_model": self.mesh.as_ref().map(|m| m.source.clone()),
-        });
-        if let (Value::Object(m), MethodSettings::Compact(c)) = (&mut doc, &self.method) {
-            // No lattice: its sizes, frame and refinement play no part.
-            for key in [
-                "size", "radius", "bend", "spacing", "origin", "frame", "refine", "alpha",
-            ] {
-                m.remove(key);
-            }
-            m.insert("types".into(), json!([super::options::AUTO_TYPES]));
-            m.insert(
-                "detect".into(),
-                json!({ "segments": c.segments, "proposed": c.proposed,
-                        "growing_noise": c.growing_noise, "angle_degrees": c.angle_degrees,
-                        "voxel": c.voxel }),
-            );
-        }
-        if let (Value::Object(m), MethodSettings::Mcmc(mcmc)) = (&mut doc, &self.method) {
-            // The chamfer loss and its solver play no part in other methods.
-            for key in [
-                "model",
-                "alpha",
-                "beta",
-                "cap",
-                "weights",
-                "parameterization",
-                "max_iterations",
-                "search_points",
-                "threshold",
-                "polish",
-            ] {
-                m.remove(key);
-            }
-            let r = &mcmc.ray;
-            m.insert(
-                "ray".into(),
-                json!({ "rate": r.rate, "sigma": r.sigma, "min_cos": r.min_cos }),
-            );
-            m.insert(
-                "mcmc".into(),
-                json!({ "prior": mcmc.prior, "steps": mcmc.steps, "burn_in": mcmc.burn_in,
-                        "flips_per_step": mcmc.flips_per_step, "decay": mcmc.decay }),
-            );
-        }
-        doc
+        serde_json::to_value(SettingsDoc::new(self, None)).unwrap_or(Value::Null)
     }
+}
+
+/// The default memory budget: [`DEFAULT_MEMORY_SHARE`] of the machine's memory (bytes).
+pub(super) fn default_memory_budget() -> u64 {
+    (physical_memory() as f64 * DEFAULT_MEMORY_SHARE) as u64
 }
 
 #[cfg(test)]

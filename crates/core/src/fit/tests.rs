@@ -196,3 +196,69 @@ fn memory_budget_covers_the_peak_and_names_the_settings() {
     };
     assert!(fit(&c, &exact, &Silent).is_ok());
 }
+
+#[test]
+fn result_json_reads_back_to_the_same_result() {
+    use crate::metrics::{MetricsOptions, evaluate};
+    let c = corner();
+    let no_meshes = |_: &str| -> Result<crate::atlas::MeshShape> { unreachable!("no meshes") };
+    for options in [
+        // The default: the compact model (types auto).
+        FitOptions::default(),
+        // A refined lattice of squares.
+        FitOptions {
+            kinds: vec![ShapeKind::Square],
+            size: Some(1.0),
+            ..FitOptions::default()
+        },
+        FitOptions {
+            size: Some(1.0),
+            model: PointModel::Independent,
+            beta: crate::Limit::All,
+            solver: crate::solve::SolverOptions {
+                search_points: crate::Limit::All,
+                ..Default::default()
+            },
+            ..FitOptions::lattice()
+        },
+    ] {
+        let fitted = fit(&c, &options, &Silent).unwrap();
+        let metrics = evaluate(
+            &c.points,
+            &fitted.primitives,
+            None,
+            &MetricsOptions::default(),
+        )
+        .unwrap();
+        let doc = fitted.to_json(metrics.to_json());
+        let (back, back_metrics) = FitResult::from_json(&doc, &no_meshes).unwrap();
+        // The same document, key for key and number for number.
+        assert_eq!(back.to_json(back_metrics.to_json()), doc);
+        assert_eq!(back_metrics, metrics);
+        assert_eq!(back.existence, fitted.existence);
+        assert_eq!(back.primitives.len(), fitted.primitives.len());
+        for (a, b) in back.primitives.iter().zip(&fitted.primitives) {
+            assert_eq!(a.pose, b.pose);
+            assert_eq!(a.shape.sizes_json(), b.shape.sizes_json());
+        }
+        let (s, t) = (&back.settings, &fitted.settings);
+        assert_eq!(
+            (s.size, s.spacing, s.origin, s.frame),
+            (t.size, t.spacing, t.origin, t.frame)
+        );
+        assert_eq!(
+            (&s.chamfer, &s.refine, &s.method),
+            (&t.chamfer, &t.refine, &t.method)
+        );
+        assert_eq!(s.solver.search_points, t.solver.search_points);
+    }
+    let auto = fit(&c, &FitOptions::default(), &Silent).unwrap();
+    assert!(matches!(auto.settings.method, MethodSettings::Compact(_)));
+    // What is not a fit's result is refused, naming the part.
+    let bad = serde_json::json!({"settings": {}, "metrics": {}, "primitives": []});
+    let e = FitResult::from_json(&bad, &no_meshes).unwrap_err();
+    assert!(
+        matches!(&e, Error::Json { field, .. } if field == "settings"),
+        "{e}"
+    );
+}

@@ -78,6 +78,7 @@ mod atomic;
 mod collect;
 mod detect;
 mod e57;
+pub mod json;
 mod las;
 mod palette;
 mod pcd;

@@ -2,18 +2,20 @@
 //! their JSON record.
 
 use nalgebra::Vector3;
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
 
 use crate::Result;
 use crate::check::{self, Interval};
 
 /// Settings of [`register`](super::register). Fractions are of the model size (the diagonal of the mesh's
 /// bounding box, scene units after the pose's scale).
-#[derive(Debug, Clone, PartialEq)]
+#[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RegisterOptions {
     /// Estimate the translation (else it is [`RegisterOptions::fixed_translation`]).
     pub translation: bool,
     /// The translation when it is not estimated (scene units).
+    #[serde(skip)]
     pub fixed_translation: Vector3<f64>,
     /// Estimate a uniform scale within this range (`None` = scale 1).
     pub scale: Option<(f64, f64)>,
@@ -28,6 +30,7 @@ pub struct RegisterOptions {
     /// translation search but no votes ([`RegisterOptions::vote_peaks`] = 0), 8 ×
     /// `initial_particles` (the 6-D prior is far larger). With votes, each draw is a
     /// rotation (and scale) that gets `vote_peaks` translations.
+    #[serde(skip)]
     pub screen: Option<usize>,
     /// Cloud points (a stride subsample) of the screening proxy.
     pub screen_points: usize,
@@ -87,7 +90,8 @@ pub struct RegisterOptions {
     pub basin_share: f64,
     /// ICP steps of each such move.
     pub local_steps: usize,
-    /// Most samples of the outlier primitive.
+    /// Most samples of the outlier primitive (not recorded in `result.json`).
+    #[serde(skip)]
     pub max_outlier_samples: usize,
     /// Translation prior: the model, rotated and scaled, lies inside the scene's bounding
     /// box, its extents about its centre first multiplied by this (1 = wholly inside;
@@ -206,46 +210,27 @@ impl RegisterOptions {
             })
     }
 
-    /// The options as JSON (the `settings` of `result.json`).
+    /// The options as JSON (the `settings` of `result.json`: every option, the screen
+    /// resolved, and `"method": "particle_filter"`).
     pub fn to_json(&self) -> Value {
         let t = &self.fixed_translation;
-        json!({
-            "method": "particle_filter",
-            "translation": self.translation,
-            "fixed_translation": if self.translation { Value::Null } else { json!([t.x, t.y, t.z]) },
-            "scale": self.scale.map(|(a, b)| json!([a, b])),
-            "count": self.count,
-            "max_objects": self.max_objects,
-            "initial_particles": self.initial_particles,
-            "screen": self.screen_draws(),
-            "screen_points": self.screen_points,
-            "vote_peaks": self.vote_peaks,
-            "vote_keep": self.vote_keep,
-            "vote_bin": self.vote_bin,
-            "vote_spacing": self.vote_spacing,
-            "particles": self.particles,
-            "max_rounds": self.max_rounds,
-            "kernel_start": self.kernel_start,
-            "kernel_end": self.kernel_end,
-            "kernel_shrink": self.kernel_shrink,
-            "spread": self.spread,
-            "translation_spread": self.translation_spread,
-            "settle_rounds": self.settle_rounds,
-            "ess": self.ess,
-            "beta": self.beta,
-            "primitive_weight": self.primitive_weight,
-            "min_support": self.min_support,
-            "search_support": self.search_support,
-            "local_moves": self.local_moves,
-            "local_steps": self.local_steps,
-            "flip_moves": self.flip_moves,
-            "basin_share": self.basin_share,
-            "prior_margin": self.prior_margin,
-            "sample_spacing": self.sample_spacing,
-            "icp": self.icp,
-            "inlier_distance": self.inlier_distance,
-            "threshold": self.threshold,
-            "seed": self.seed,
-        })
+        let doc = SettingsDoc {
+            method: "particle_filter",
+            fixed_translation: (!self.translation).then_some([t.x, t.y, t.z]),
+            screen: self.screen_draws(),
+            options: self,
+        };
+        serde_json::to_value(doc).unwrap_or(Value::Null)
     }
+}
+
+/// The `settings` of a registration's `result.json`: every option (the screen resolved,
+/// the fixed translation only when the translation is not estimated) and the method.
+#[derive(Serialize)]
+struct SettingsDoc<'a> {
+    method: &'static str,
+    fixed_translation: Option<[f64; 3]>,
+    screen: usize,
+    #[serde(flatten)]
+    options: &'a RegisterOptions,
 }

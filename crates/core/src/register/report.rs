@@ -1,9 +1,11 @@
 //! What a registration found ([`Registration`], one [`FoundObject`] per object) and its
 //! `result.json`.
 
-use serde_json::{Value, json};
+use serde::Serialize;
+use serde_json::Value;
 
 use super::particle_filter::RoundStats;
+use crate::fit::document::{PrimitiveEntry, ResultDoc};
 use crate::{Pose, Primitive};
 
 /// One object found by [`register`](super::register).
@@ -38,14 +40,30 @@ impl Registration {
     /// `result.json` (DESIGN §3): one `"type": "mesh"` entry per object found, with its
     /// pose, `existence` and `inlier_share`.
     pub fn to_json(&self, settings: Value, metrics: Value) -> Value {
-        let prims: Vec<Primitive> = self.objects.iter().map(|o| o.primitive.clone()).collect();
-        let existence: Vec<f64> = self.objects.iter().map(|o| o.existence).collect();
-        let mut doc = crate::fit::result_json(settings, metrics, &prims, &existence);
-        if let Some(list) = doc["primitives"].as_array_mut() {
-            for (v, o) in list.iter_mut().zip(&self.objects) {
-                v["inlier_share"] = json!(o.inlier_share);
-            }
+        /// One object's entry: the primitive's, with its `inlier_share`.
+        #[derive(Serialize)]
+        struct Entry<'a> {
+            #[serde(flatten)]
+            entry: PrimitiveEntry<'a>,
+            inlier_share: f64,
         }
-        doc
+        let primitives = self
+            .objects
+            .iter()
+            .map(|o| Entry {
+                entry: PrimitiveEntry {
+                    primitive: &o.primitive,
+                    existence: o.existence,
+                },
+                inlier_share: o.inlier_share,
+            })
+            .collect();
+        let doc = ResultDoc {
+            primfit: crate::VERSION,
+            settings,
+            metrics,
+            primitives,
+        };
+        serde_json::to_value(doc).unwrap_or(Value::Null)
     }
 }

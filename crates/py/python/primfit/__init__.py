@@ -241,6 +241,15 @@ class FitResult:
         self.settings: dict[str, Any] = doc["settings"]
         self.existence: np.ndarray = existence
 
+    @classmethod
+    def from_json(cls, document: str | Mapping[str, Any]) -> FitResult:
+        """A fit's result read back from its ``result.json`` (the text, or the parsed
+        dict), e.g. one ``primfit fit -o`` wrote. It is checked against the library's
+        schema (settings, metrics, primitives; mesh sources must be readable files):
+        anything else raises ``ValueError``."""
+        text = document if isinstance(document, str) else json.dumps(document, indent=2)
+        return cls(text, _primfit.read_result(text))
+
     def to_json(self) -> str:
         """The ``result.json`` document (DESIGN §3), as the CLI writes it."""
         return self._document

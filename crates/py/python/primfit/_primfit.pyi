@@ -21,6 +21,7 @@ __all__ = [
     "fit_problem",
     "read_mesh",
     "read_ply",
+    "read_result",
     "synth_hallway",
     "synth_nine_cylinders",
     "synth_pipe",
@@ -122,6 +123,7 @@ def fit(
     labels: npt.NDArray[np.int32] | None = None,
     sensors: _F64 | None = None,
 ) -> tuple[str, _F64]: ...
+def read_result(text: str) -> _F64: ...
 def candidates(cloud: _F64, options: FitOptions) -> tuple[str, _F64, _I64, str]: ...
 def fit_problem(cloud: _F64, options: FitOptions) -> ChamferProblem: ...
 
