@@ -10,6 +10,9 @@
 //! | `compactness` | `Σ parameter_count ÷ (3 × points)` | dimensionless |
 //! | `precision`, `recall`, `scene_accuracy` | against ground truth (see [`match_primitives`]) | fractions |
 //!
+//! Not in [`Metrics`] (its JSON is pinned by the golden tests): the overlap of a model
+//! with itself, [`overlap_share`] and [`double_cover_share`] (`overlap.rs`).
+//!
 //! **Empty model.** With no fitted primitive every distance from a point to the model
 //! is `+∞`; then `point_to_model_*`, `model_to_point_mean` (no samples to average) and
 //! `chamfer` are `f64::INFINITY` in [`Metrics`] and `null` in [`Metrics::to_json`] (JSON
@@ -30,6 +33,10 @@ use crate::cloud::bounds_of;
 use crate::io::json::nan_as_null;
 use crate::spatial::{PointIndex, PrimitiveIndex};
 use crate::{Error, Primitive, Result, check};
+
+mod overlap;
+
+pub use overlap::{DOUBLE_COVER_MAX_ANGLE_DEG, double_cover_share, overlap_share};
 
 /// For every point, the distance to the nearest surface of `model` (`+∞` when the model
 /// is empty). Parallel.
