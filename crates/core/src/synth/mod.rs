@@ -6,7 +6,9 @@
 //! lives, so a test can build the matching candidate set.
 //!
 //! [`depth_sensor`] instead ray-casts a truth from sensor poses (multi-frame scans with
-//! sensor origins, for the ray likelihood).
+//! sensor origins, for the ray likelihood). [`room`] is a furnished room whose truth is
+//! its visible faces as bounded planes and its tubes as cylinders, seen area-uniformly
+//! or by a depth camera with quantised depth ([`RoomScene`]; not a lattice scene).
 //!
 //! Noise model, applied in this order (all lengths in scene units, metres by default):
 //!
@@ -31,6 +33,8 @@ mod hallway;
 mod nine;
 mod pipe;
 mod registration;
+mod room;
+mod room_view;
 mod six;
 
 pub use common::{
@@ -42,4 +46,8 @@ pub use hallway::{HallwayParams, hallway};
 pub use nine::{NineCylinderParams, nine_cylinders, nine_cylinders_candidates};
 pub use pipe::{PipeParams, pipe};
 pub use registration::{RegistrationParams, asymmetric_object, registration};
+pub use room::{Furniture, RoomGeometry, Tube};
+pub use room_view::{
+    KINECT_DISPARITY_STEP, MIN_SENSOR_DEPTH, RoomParams, RoomScene, RoomView, room,
+};
 pub use six::{SixInARow, SixInARowParams, SixVariant, six_in_a_row};
