@@ -34,6 +34,7 @@ mod nine;
 mod pipe;
 mod registration;
 mod room;
+mod room_presets;
 mod room_view;
 mod six;
 
@@ -47,6 +48,9 @@ pub use nine::{NineCylinderParams, nine_cylinders, nine_cylinders_candidates};
 pub use pipe::{PipeParams, pipe};
 pub use registration::{RegistrationParams, asymmetric_object, registration};
 pub use room::{Furniture, RoomGeometry, Tube};
+pub use room_presets::{
+    PRESET_DENSITY, PRESET_RANGE_SIGMA, PRESET_SIGMA, room_preset, room_presets,
+};
 pub use room_view::{
     KINECT_DISPARITY_STEP, MIN_SENSOR_DEPTH, RoomParams, RoomScene, RoomView, room,
 };

@@ -1,0 +1,243 @@
+//! Issue 14's targets for the compact model (`compact_model`, no options) on furnished
+//! synthetic rooms made here ([`primfit_core::synth::room`]):
+//!
+//! - primitive count within 20 % of the number of true (visible) surfaces;
+//! - under 1 % of model area within `h` = 2 point spacings of another primitive: as
+//!   [`double_cover_share`] (another primitive over or under it, along its normal) in
+//!   every scene test; as the literal [`overlap_share`] (which also counts the band of
+//!   width `h` where two faces meet at an edge, about 4 % of the true room's own area at
+//!   this resolution) in [`literal_overlap_below_one_percent`], ignored: the truth
+//!   itself does not meet it;
+//! - point→model mean ≤ 1.5 σ, model→point mean ≤ 2 σ (σ: the scene's noise, with
+//!   the quantisation's `step/√12` where depth is quantised);
+//! - every true cylinder matched by a fitted one with radius within 5 % and axis within 3°.
+//!
+//! Each test prints its measures (`cargo test --test compact_synthetic -- --nocapture`),
+//! the same measures of the truth itself beside them: the floor the data allow.
+
+use nalgebra::Vector3;
+use primfit_core::compact::{CompactModel, CompactOptions, compact_model};
+use primfit_core::metrics::{
+    MetricsOptions, default_coverage_tau, double_cover_share, evaluate, overlap_share,
+    surface_distance,
+};
+use primfit_core::progress::Silent;
+use primfit_core::spatial::PointIndex;
+use primfit_core::synth::{RoomScene, room, room_preset, room_presets};
+use primfit_core::{Primitive, Shape};
+
+/// A true surface counts (is visible) when it holds at least this many points: fewer
+/// than a detected segment's smallest size cannot be a surface of the model.
+const MIN_TRUE_POINTS: usize = 100;
+
+/// Relative tolerance of the primitive count.
+const COUNT_TOLERANCE: f64 = 0.2;
+
+/// Largest share of model area within `h` of another primitive.
+const MAX_OVERLAP: f64 = 0.01;
+
+/// Largest point→model mean, in σ.
+const MAX_POINT_TO_MODEL_SIGMAS: f64 = 1.5;
+
+/// Largest model→point mean, in σ.
+const MAX_MODEL_TO_POINT_SIGMAS: f64 = 2.0;
+
+/// Largest relative radius error of a matched cylinder.
+const MAX_RADIUS_ERROR: f64 = 0.05;
+
+/// Largest axis error of a matched cylinder (degrees).
+const MAX_AXIS_DEG: f64 = 3.0;
+
+/// The measures of one scene.
+#[derive(Debug)]
+struct Measured {
+    true_surfaces: usize,
+    fitted: usize,
+    planes: usize,
+    cylinders: usize,
+    overlap: f64,
+    double_cover: f64,
+    truth_overlap: f64,
+    truth_double_cover: f64,
+    point_to_model: f64,
+    model_to_point: f64,
+    truth_point_to_model: f64,
+    truth_model_to_point: f64,
+    /// Per true cylinder: (radius error (relative), axis error (degrees)), `None` when
+    /// no fitted cylinder lies on it.
+    cylinder_errors: Vec<Option<(f64, f64)>>,
+    seconds: f64,
+}
+
+fn axis(p: &Primitive) -> Vector3<f64> {
+    p.pose.rotation * Vector3::z()
+}
+
+fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
+    a.normalize().dot(&b.normalize()).abs().min(1.0).acos().to_degrees()
+}
+
+/// Fits the scene and measures it against its truth.
+fn measure(name: &str, scene: &RoomScene) -> (Measured, CompactModel) {
+    let points = &scene.cloud.points;
+    let index = PointIndex::new(points);
+    let t = std::time::Instant::now();
+    let model = compact_model(points, &index, &CompactOptions::default(), &Silent).unwrap();
+    let seconds = t.elapsed().as_secs_f64();
+    let prims = &model.primitives;
+    let visible: Vec<Primitive> = scene
+        .truth
+        .iter()
+        .zip(&scene.points_per_surface)
+        .filter(|(_, n)| **n >= MIN_TRUE_POINTS)
+        .map(|(p, _)| p.clone())
+        .collect();
+    let h = default_coverage_tau(points);
+    let spacing = h / 2.0;
+    let sigma = scene.sigma;
+    let m = evaluate(points, prims, None, &MetricsOptions::default()).unwrap();
+    let truth = evaluate(points, &visible, None, &MetricsOptions::default()).unwrap();
+    let kind = |k: &str| prims.iter().filter(|p| p.shape.kind().name() == k).count();
+    let cylinder_errors = visible
+        .iter()
+        .filter_map(|t| match t.shape {
+            Shape::Cylinder { radius, .. } => Some((t, radius)),
+            _ => None,
+        })
+        .map(|(t, r)| {
+            prims
+                .iter()
+                .filter_map(|p| match p.shape {
+                    Shape::Cylinder { radius, .. } => Some((p, radius)),
+                    _ => None,
+                })
+                .map(|(p, radius)| (surface_distance(p, t, spacing), p, radius))
+                .filter(|(d, _, _)| *d < r)
+                .min_by(|a, b| a.0.total_cmp(&b.0))
+                .map(|(_, p, radius)| ((radius - r).abs() / r, angle_deg(&axis(p), &axis(t))))
+        })
+        .collect();
+    let measured = Measured {
+        true_surfaces: visible.len(),
+        fitted: prims.len(),
+        planes: kind("plane"),
+        cylinders: kind("cylinder"),
+        overlap: overlap_share(prims, h, spacing).unwrap(),
+        double_cover: double_cover_share(prims, h, spacing).unwrap(),
+        truth_overlap: overlap_share(&visible, h, spacing).unwrap(),
+        truth_double_cover: double_cover_share(&visible, h, spacing).unwrap(),
+        point_to_model: m.point_to_model_mean / sigma,
+        model_to_point: m.model_to_point_mean / sigma,
+        truth_point_to_model: truth.point_to_model_mean / sigma,
+        truth_model_to_point: truth.model_to_point_mean / sigma,
+        cylinder_errors,
+        seconds,
+    };
+    eprintln!(
+        "{name}: {} points, σ = {sigma:.5}, spacing {spacing:.5}, h = {h:.5}\n  \
+         surfaces: {} true, {} fitted ({} planes, {} cylinders) in {:.1} s\n  \
+         overlap@h {:.4} (truth {:.4}), double cover {:.4} (truth {:.4})\n  \
+         point→model {:.2} σ (truth {:.2} σ), model→point {:.2} σ (truth's whole faces {:.2} σ)\n  \
+         cylinders (radius error, axis °): {:?}",
+        points.len(),
+        measured.true_surfaces,
+        measured.fitted,
+        measured.planes,
+        measured.cylinders,
+        seconds,
+        measured.overlap,
+        measured.truth_overlap,
+        measured.double_cover,
+        measured.truth_double_cover,
+        measured.point_to_model,
+        measured.truth_point_to_model,
+        measured.model_to_point,
+        measured.truth_model_to_point,
+        measured.cylinder_errors,
+    );
+    (measured, model)
+}
+
+/// Every target of the issue, each failure named.
+fn failures(m: &Measured) -> Vec<String> {
+    let mut out = Vec::new();
+    let (t, f) = (m.true_surfaces as f64, m.fitted as f64);
+    if (f - t).abs() > COUNT_TOLERANCE * t {
+        out.push(format!("count {} for {} true surfaces", m.fitted, m.true_surfaces));
+    }
+    if m.double_cover >= MAX_OVERLAP {
+        out.push(format!("double cover {:.4}", m.double_cover));
+    }
+    if m.point_to_model > MAX_POINT_TO_MODEL_SIGMAS {
+        out.push(format!("point→model {:.2} σ", m.point_to_model));
+    }
+    if m.model_to_point > MAX_MODEL_TO_POINT_SIGMAS {
+        out.push(format!("model→point {:.2} σ", m.model_to_point));
+    }
+    for (k, e) in m.cylinder_errors.iter().enumerate() {
+        match e {
+            None => out.push(format!("cylinder {k} not found")),
+            Some((r, a)) if *r > MAX_RADIUS_ERROR || *a > MAX_AXIS_DEG => {
+                out.push(format!("cylinder {k}: radius error {r:.3}, axis {a:.2}°"))
+            }
+            _ => {}
+        }
+    }
+    out
+}
+
+fn assert_targets(name: &str, scene: &RoomScene) {
+    let (m, _) = measure(name, scene);
+    let failed = failures(&m);
+    assert!(failed.is_empty(), "{name}: {failed:?}\n{m:?}");
+}
+
+/// The preset `name`'s scene.
+fn preset(name: &str) -> RoomScene {
+    room(&room_preset(name).unwrap().unwrap()).unwrap()
+}
+
+#[test]
+fn a_rotated_furnished_room() {
+    assert_targets("rotated", &preset("rotated"));
+}
+
+#[test]
+fn a_room_with_a_ceiling_a_pipe_run_and_a_pole() {
+    assert_targets("pipe-and-pole", &preset("pipe-and-pole"));
+}
+
+#[test]
+fn a_quantised_depth_frame_of_a_room() {
+    assert_targets("kinect", &preset("kinect"));
+}
+
+#[test]
+fn a_room_with_quantised_depth_and_no_occlusion() {
+    assert_targets("kinect-no-occlusion", &preset("kinect-no-occlusion"));
+}
+
+#[test]
+fn a_room_a_thousand_times_smaller() {
+    assert_targets("millimetre", &preset("millimetre"));
+}
+
+#[test]
+fn a_room_with_a_table_on_legs() {
+    assert_targets("table-on-legs", &preset("table-on-legs"));
+}
+
+#[test]
+#[ignore = "target not met by the truth itself: see the test's docs"]
+fn literal_overlap_below_one_percent() {
+    // The literal measure counts the band of width h = 2 spacings along every edge
+    // where two faces meet: about 2 h L / A of the area (edge length L, area A).
+    let mut failed = Vec::new();
+    for (name, params) in room_presets().unwrap() {
+        let (m, _) = measure(name, &room(&params).unwrap());
+        if m.overlap >= MAX_OVERLAP {
+            failed.push(format!("{name}: {:.4} (truth {:.4})", m.overlap, m.truth_overlap));
+        }
+    }
+    assert!(failed.is_empty(), "{failed:?}");
+}
