@@ -4,15 +4,20 @@
 //! local residual of the segment's points where that is larger) and `t` the tolerance
 //! (in σ, [`super::DEFAULT_TOLERANCE`]).
 //!
-//! 1. The least-squares plane ([`super::plane`]) with RMS `≤ t σ` explains the segment:
+//! 1. The least-squares plane ([`super::plane`]) with RMS `≤ 2 σ_fine`
+//!    ([`CURVED_MIN_PLANE_SIGMAS`]; `σ_fine ≤ σ` the segment's median neighbourhood
+//!    residual, which curvature inflates least) explains the segment:
 //!    a **plane** (the simplest model is tried first; a gently curved surface that a
-//!    plane explains within the noise *is* a plane at this noise level).
+//!    plane explains within the noise *is* a plane at this noise level, and no curved
+//!    model could halve an RMS already near σ).
 //! 2. Otherwise a **cylinder** ([`super::cylinder`]) and, when enabled, a **sphere**
 //!    ([`super::sphere`]) are fitted; one is accepted if its RMS is `≤ t σ` **and** at
 //!    most [`CURVED_GAIN`] times the plane's RMS (it must explain the points markedly
 //!    better than the plane, not merely absorb noise with its extra parameters). Of two
 //!    accepted, the lower RMS wins.
-//! 3. Otherwise the segment is **clutter**: no model of the three explains it.
+//! 3. Otherwise the plane, if its RMS is `≤ t σ` (a curved surface the noise estimate
+//!    absorbed is caught by step 2 first: [`CURVED_MIN_PLANE_SIGMAS`]).
+//! 4. Otherwise the segment is **clutter**: no model of the three explains it.
 
 use nalgebra::{Point3, Vector3};
 
@@ -25,6 +30,14 @@ use super::sphere::fit_sphere;
 /// halving the residual is far beyond what the 2–3 extra parameters of a cylinder or
 /// sphere gain on truly planar noise.
 pub const CURVED_GAIN: f64 = 0.5;
+
+/// A plane within this many σ (at the finest scale) is kept without trying curved
+/// models: no curved model can have less RMS than the noise, so none can halve this
+/// ([`CURVED_GAIN`]). A plane that passes the tolerance with more RMS may be a curved
+/// surface whose curvature the coarse noise estimate has absorbed (curvature inflates
+/// the residuals of wide neighbourhoods: a pole seen by a depth camera), and is a
+/// cylinder or sphere when one explains it markedly better.
+pub const CURVED_MIN_PLANE_SIGMAS: f64 = 1.0 / CURVED_GAIN;
 
 /// A curved model's radius must be at most this multiple of the segment's extent (its
 /// largest RMS spread along a principal direction): larger radii describe surfaces that
@@ -42,11 +55,14 @@ pub struct Classified {
 
 /// Classifies the points `points[i]`, `i ∈ ids`, with unit normals `normals[i]`, at
 /// noise `sigma` and tolerance `tolerance` (in σ); `spheres` enables the sphere model.
+/// `fine` is the segment's noise at the finest scale (the median residual of its own
+/// neighbourhoods, scene units), which curvature inflates least: a plane within
+/// [`CURVED_MIN_PLANE_SIGMAS`] of it is kept without trying curved models.
 pub fn classify(
     points: &[Point3<f64>],
     normals: &[Vector3<f64>],
     ids: &[usize],
-    sigma: f64,
+    (sigma, fine): (f64, f64),
     tolerance: f64,
     spheres: bool,
 ) -> Classified {
@@ -58,14 +74,15 @@ pub fn classify(
             rms: f64::INFINITY,
         };
     };
-    if plane.rms <= limit {
-        return Classified {
-            model: Some(SurfaceModel::Plane {
-                point: plane.point,
-                normal: plane.normal,
-            }),
-            rms: plane.rms,
-        };
+    let as_plane = Classified {
+        model: Some(SurfaceModel::Plane {
+            point: plane.point,
+            normal: plane.normal,
+        }),
+        rms: plane.rms,
+    };
+    if plane.rms <= limit && plane.rms <= CURVED_MIN_PLANE_SIGMAS * fine {
+        return as_plane;
     }
     let pts: Vec<Point3<f64>> = ids.iter().map(|&i| points[i]).collect();
     let ns: Vec<Vector3<f64>> = ids.iter().map(|&i| normals[i]).collect();
@@ -97,10 +114,14 @@ pub fn classify(
             rms: s.rms,
         });
     }
-    best.unwrap_or(Classified {
-        model: None,
-        rms: plane.rms,
-    })
+    match best {
+        Some(curved) => curved,
+        None if plane.rms <= limit => as_plane,
+        None => Classified {
+            model: None,
+            rms: plane.rms,
+        },
+    }
 }
 
 /// The largest RMS spread of `pts` along a principal direction (scene units).

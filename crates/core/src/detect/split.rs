@@ -65,12 +65,12 @@ impl Splitter<'_> {
 
     /// The part of `ids` with its model (`None`: clutter).
     fn part(&self, ids: Vec<usize>) -> Part {
-        let sigma = self.noise(&ids);
+        let (sigma, fine) = self.noise(&ids);
         let c = classify(
             self.samples,
             &self.nb.normals,
             &ids,
-            sigma,
+            (sigma, fine),
             self.tolerance,
             self.spheres,
         );
@@ -202,11 +202,12 @@ impl Splitter<'_> {
     }
 
     /// A part's noise: the median of the model σ over its samples, or the median residual
-    /// of its samples where that is larger.
-    fn noise(&self, ids: &[usize]) -> f64 {
+    /// of its samples where that is larger; and that median residual (the finest scale).
+    fn noise(&self, ids: &[usize]) -> (f64, f64) {
         let mut s: Vec<f64> = ids.iter().map(|&i| self.model_sigma[i]).collect();
         let mut r: Vec<f64> = ids.iter().map(|&i| self.nb.residual[i]).collect();
         let local = median(&mut s).unwrap_or(0.0);
-        median(&mut r).unwrap_or(0.0).max(local)
+        let fine = median(&mut r).unwrap_or(0.0);
+        (fine.max(local), fine)
     }
 }
