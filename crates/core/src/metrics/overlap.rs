@@ -13,11 +13,12 @@
 //!   (`A` its area) even when no surface is covered twice — 2 % for a 5 × 4 × 2.5 m room
 //!   of floor and walls at `h` = 3 cm.
 //! - [`double_cover_share`]: a sample is covered only when the nearest point of the
-//!   other primitive is within `h` **and** lies along the sample's own normal (within
-//!   [`DOUBLE_COVER_MAX_ANGLE_DEG`]), or coincides with it: the other surface runs over
-//!   or under this one (two stacked or coplanar overlapping patches), not beside it (a
-//!   perpendicular face meeting it at an edge, a coplanar tile abutting it). This is
-//!   the share of area covered twice.
+//!   other primitive is within `h`, lies along the sample's own normal (within
+//!   [`DOUBLE_COVER_MAX_ANGLE_DEG`]) or coincides with it, **and** the other surface is
+//!   parallel to this one there (normals within the same angle): the other surface runs
+//!   over or under this one (two stacked or coplanar overlapping patches), not beside it
+//!   (a coplanar tile abutting it) nor across it (a perpendicular face meeting it at an
+//!   edge, or ending just short of it). This is the share of area covered twice.
 //!
 //! Neighbours are found through bounding balls (a kd-tree over centres per radius class,
 //! as [`crate::spatial::PrimitiveIndex`]), so only primitives whose balls come within `h`
@@ -30,9 +31,10 @@ use crate::spatial::PointIndex;
 use crate::{Primitive, Result, check};
 
 /// The largest angle (degrees) between a sample's normal and the direction to the
-/// nearest point of another primitive for [`double_cover_share`] to count the sample as
-/// covered twice. 45° splits "over or under" (0°, stacked patches) from "beside" (90°,
-/// faces meeting at an edge) evenly.
+/// nearest point of another primitive, and between the two surfaces' normals, for
+/// [`double_cover_share`] to count the sample as covered twice. 45° splits "over or
+/// under, parallel" (0°, stacked patches) from "beside" or "across" (90°, faces meeting
+/// at an edge) evenly.
 pub const DOUBLE_COVER_MAX_ANGLE_DEG: f64 = 45.0;
 
 /// Distances below this many sample spacings count as coincident surfaces for
@@ -51,8 +53,9 @@ pub fn overlap_share(model: &[Primitive], h: f64, spacing: f64) -> Result<f64> {
 }
 
 /// Share of `model`'s area (in `[0, 1]`) that another of its primitives covers too: the
-/// other's nearest surface point is within `h` (scene units) along the sample's normal
-/// (within [`DOUBLE_COVER_MAX_ANGLE_DEG`]), from area-uniform samples `spacing` apart
+/// other's nearest surface point is within `h` (scene units) along the sample's normal,
+/// and the other surface parallel to it there (both within
+/// [`DOUBLE_COVER_MAX_ANGLE_DEG`]), from area-uniform samples `spacing` apart
 /// (scene units); 0 for a model with no area. Faces meeting at an edge do not count
 /// (see the module docs). Errs when `h < 0` or `spacing ≤ 0`.
 pub fn double_cover_share(model: &[Primitive], h: f64, spacing: f64) -> Result<f64> {
@@ -118,16 +121,15 @@ fn is_covered<'a>(
                 }
             }
             Cover::Along => {
-                let offset = b.closest_point(x) - x;
+                let y = b.closest_point(x);
+                let offset = y - x;
                 let d = offset.norm();
                 if d > h {
                     continue;
                 }
-                if d <= COINCIDENT_SPACINGS * spacing {
-                    return true;
-                }
                 let n = *normal.get_or_insert_with(|| surface_normal(a, x, spacing));
-                if offset.dot(&n).abs() >= cos_max * d {
+                let along = d <= COINCIDENT_SPACINGS * spacing || offset.dot(&n).abs() >= cos_max * d;
+                if along && surface_normal(b, &y, spacing).dot(&n).abs() >= cos_max {
                     return true;
                 }
             }
@@ -269,6 +271,16 @@ mod tests {
         let h = 0.05;
         let (near, double) = shares(&model, h);
         assert!((near - h).abs() < 0.011, "a band h wide on each: {near}");
+        assert_eq!(double, 0.0);
+        // Both ending 2 cm short of the edge: the other face is diagonally within h of
+        // a band of each, but across it, not over it.
+        let short_pose = Pose::new(wall_pose.rotation, Vector3::new(0.5, 0.0, 0.51));
+        let short = [
+            square(0.98, -0.01, 0.0, 0.0),
+            Primitive::new(Shape::Square { side: 0.98 }, short_pose),
+        ];
+        let (near, double) = shares(&short, h);
+        assert!(near > 0.02, "{near}");
         assert_eq!(double, 0.0);
     }
 
