@@ -42,8 +42,8 @@ use super::plane::Moments;
 /// mug, 40.0 and 37.3 mm walls, one 38.5 mm cylinder at 0.8 mm RMS).
 const RADIUS_RATIO_GAP: f64 = 0.2;
 
-/// Cylinders merge only if each one's axis passes within this fraction of the larger
-/// radius of the other's axis point.
+/// Cylinders merge only if the longer one's axis passes within this fraction of the
+/// larger radius of the other's axis point.
 const AXIS_OFFSET_GAP: f64 = 0.2;
 
 /// A part's RMS about the union's model may exceed its own model's RMS (or its σ, if
@@ -164,7 +164,7 @@ fn merge_cylinders(
             point: pb,
             axis: ab,
             radius: rb,
-            ..
+            length: lb,
         }),
     ) = (a.model, b.model)
     else {
@@ -175,10 +175,16 @@ fn merge_cylinders(
         let d = q - p;
         (d - axis * d.dot(axis)).norm()
     };
+    // The longer part's axis is the better determined: a short piece's axis, tilted by
+    // a fraction of a degree, misses a far neighbour's axis point.
+    let offset = if la >= lb {
+        off(&pa, &pb, &aa)
+    } else {
+        off(&pb, &pa, &ab)
+    };
     if aa.dot(&ab).abs() < cos_angle
         || (ra - rb).abs() > (tolerance * a.sigma.max(b.sigma)).min(RADIUS_RATIO_GAP * r)
-        || off(&pa, &pb, &aa) > AXIS_OFFSET_GAP * r
-        || off(&pb, &pa, &ab) > AXIS_OFFSET_GAP * r
+        || offset > AXIS_OFFSET_GAP * r
     {
         return None;
     }

@@ -3,7 +3,7 @@
 //!
 //! ```text
 //! points ─► voxel samples ─► normals + curvature ─► region growing ─► classify + fit
-//!        ─► merge ─► every point to its sample's segment ─► Detection
+//!        ─► merge ─► every point to its sample's segment ─► curved leftovers ─► Detection
 //! ```
 //!
 //! | step | what | file |
@@ -16,6 +16,7 @@
 //! | split | a region no model explains is split by peeling its dominant plane | `split.rs` |
 //! | merge | same-type segments that one model explains within the noise become one | `merge.rs` |
 //! | expand | each non-sample point joins its nearest sample's segment if it lies within `t σ` of the model | `expand.rs` |
+//! | leftovers | connected pieces of the unassigned points that a cylinder or sphere explains (tubes too thin for growing) | `leftover.rs` |
 //!
 //! **Derived thresholds.** Nothing needs setting; every threshold follows from the noise
 //! σ, the spacing and the neighbourhood size (each [`DetectOptions`] field overrides one):
@@ -38,6 +39,7 @@ mod classify;
 pub mod cylinder;
 mod expand;
 mod grow;
+mod leftover;
 mod model;
 pub mod noise;
 mod normals;
@@ -54,6 +56,7 @@ use rayon::prelude::*;
 
 pub use classify::{CURVED_GAIN, Classified, MAX_RADIUS_PER_EXTENT, classify};
 pub use grow::{GrowParams, grow_regions};
+pub use leftover::LINK_SPACINGS;
 pub use model::{SurfaceModel, z_to};
 pub use noise::NoiseMap;
 pub use normals::Neighbourhoods;
@@ -315,8 +318,19 @@ pub fn detect(
         nb: &nb,
     };
     let mut detection = expand::expand(points, &sampled, parts, grow.neighbours, tolerance);
+    let model_noise = coarse.global().max(fine.global());
+    leftover::Leftovers {
+        spacing,
+        k,
+        sigma: model_noise,
+        tolerance,
+        spheres: options.spheres,
+        min_points,
+        cos_angle: angle.cos(),
+    }
+    .absorb(points, &mut detection);
     detection.noise = fine.global();
-    detection.model_noise = coarse.global().max(fine.global());
+    detection.model_noise = model_noise;
     detection.spacing = spacing;
     detection.angle = angle;
     detection.voxel = voxel;

@@ -1,0 +1,240 @@
+//! Curved surfaces too thin for region growing, found among the points no segment took
+//! (unassigned, or in clutter).
+//!
+//! Region growing joins neighbours whose normals agree within the growing angle. On a
+//! tube whose radius `r` is not much larger than the normal neighbourhood's radius `R`,
+//! neighbouring normals differ by about `s / r` (`s` the spacing: 22° for a 5 cm pipe at
+//! 1.9 cm spacing, where `R` ≈ 7 cm), so the tube breaks into fragments smaller than a
+//! segment and its points end unassigned. Those neighbourhoods still see the tube's
+//! cross-section, so their normals lie roughly across its axis, which is all the
+//! cylinder fit's initial axis needs ([`super::cylinder`]).
+//!
+//! 1. The unassigned and clutter points are cut into connected pieces: points closer
+//!    than [`LINK_SPACINGS`] spacings are linked.
+//! 2. Each piece of at least the smallest segment is classified as a whole
+//!    ([`super::classify`], normals from the piece's own neighbourhoods, the curved
+//!    models always tried), at the detection's model σ or the piece's median
+//!    neighbourhood residual where that is larger.
+//! 3. A piece a cylinder or a sphere explains becomes a segment. A piece only a plane
+//!    explains does not: a planar leftover is a crease band or a fragment beside a
+//!    plane that already explains it.
+//! 4. The curved segments, old and new, are merged by the rule of [`super::merge`]:
+//!    a tube cut into pieces (where a few of its points joined no piece) is one.
+//!
+//! Pieces are found in ascending point order and classified independently, so the
+//! result does not depend on the thread count.
+
+use nalgebra::Point3;
+use rayon::prelude::*;
+
+use super::classify::classify;
+use super::merge::{Part, merge_parts};
+use super::normals::{Neighbourhoods, median};
+use super::plane::Moments;
+use super::{Detection, Segment, SurfaceModel};
+use crate::spatial::PointIndex;
+
+/// Unassigned points closer than this many point spacings belong to one piece: about
+/// the distance to the farthest of the nearest few neighbours of a random sampling.
+pub const LINK_SPACINGS: f64 = 2.5;
+
+/// What a leftover piece is judged by.
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Leftovers {
+    /// The median point spacing (scene units).
+    pub spacing: f64,
+    /// Neighbours per normal.
+    pub k: usize,
+    /// The detection's model σ (scene units).
+    pub sigma: f64,
+    /// Model tolerance `t`, in σ.
+    pub tolerance: f64,
+    /// Whether spheres are tried.
+    pub spheres: bool,
+    /// Smallest piece, in points.
+    pub min_points: usize,
+    /// Cosine of the largest angle between the axes of merged cylinders.
+    pub cos_angle: f64,
+}
+
+impl Leftovers {
+    /// Moves the pieces of `detection`'s unassigned and clutter points that a cylinder or
+    /// sphere explains into new segments (module docs), keeping the segments and the
+    /// clutter lists largest first.
+    pub fn absorb(&self, points: &[Point3<f64>], detection: &mut Detection) {
+        let mut left: Vec<usize> = detection
+            .unassigned
+            .iter()
+            .chain(detection.clutter.iter().flatten())
+            .copied()
+            .collect();
+        left.sort_unstable();
+        let pieces = self.pieces(points, &left);
+        let found: Vec<Segment> = pieces
+            .into_par_iter()
+            .filter(|ids| ids.len() >= self.min_points)
+            .filter_map(|ids| self.curved(points, ids))
+            .collect();
+        if found.is_empty() {
+            return;
+        }
+        let mut taken = vec![false; points.len()];
+        for s in &found {
+            for &i in &s.points {
+                taken[i] = true;
+            }
+        }
+        detection.unassigned.retain(|&i| !taken[i]);
+        for c in &mut detection.clutter {
+            c.retain(|&i| !taken[i]);
+        }
+        detection.clutter.retain(|c| !c.is_empty());
+        detection
+            .clutter
+            .sort_by(|a, b| b.len().cmp(&a.len()).then(a.first().cmp(&b.first())));
+        // Pieces of one tube (cut where a few of its points joined no piece) and the
+        // curved segments growing found become one by the merge rule.
+        let (curved, planes): (Vec<Segment>, Vec<Segment>) = std::mem::take(&mut detection.segments)
+            .into_iter()
+            .chain(found)
+            .partition(|s| !matches!(s.model, SurfaceModel::Plane { .. }));
+        let parts: Vec<Part> = curved
+            .into_iter()
+            .map(|s| Part {
+                moments: Moments::of(points, &s.points),
+                sigma: self.sigma.max(s.rms),
+                model: Some(s.model),
+                rms: s.rms,
+                ids: s.points,
+            })
+            .collect();
+        let merged = merge_parts(parts, points, self.cos_angle, self.tolerance);
+        detection.segments = planes;
+        detection
+            .segments
+            .extend(merged.into_iter().filter_map(|p| {
+                Some(Segment {
+                    model: p.model?,
+                    rms: p.rms,
+                    points: p.ids,
+                })
+            }));
+        detection.segments.sort_by(|a, b| {
+            b.points
+                .len()
+                .cmp(&a.points.len())
+                .then(a.points.first().cmp(&b.points.first()))
+        });
+    }
+
+    /// The connected pieces of `ids` (ascending), each ascending, in order of their
+    /// lowest point.
+    fn pieces(&self, points: &[Point3<f64>], ids: &[usize]) -> Vec<Vec<usize>> {
+        let pts: Vec<Point3<f64>> = ids.iter().map(|&i| points[i]).collect();
+        let index = PointIndex::new(&pts);
+        let link = LINK_SPACINGS * self.spacing;
+        let mut seen = vec![false; pts.len()];
+        let mut pieces = Vec::new();
+        let mut stack = Vec::new();
+        for start in 0..pts.len() {
+            if seen[start] {
+                continue;
+            }
+            seen[start] = true;
+            stack.push(start);
+            let mut piece = Vec::new();
+            while let Some(k) = stack.pop() {
+                piece.push(ids[k]);
+                for (j, _) in index.within(&pts[k], link * link) {
+                    let j = j as usize;
+                    if !seen[j] {
+                        seen[j] = true;
+                        stack.push(j);
+                    }
+                }
+            }
+            piece.sort_unstable();
+            pieces.push(piece);
+        }
+        pieces
+    }
+
+    /// The segment of the piece `ids` if a cylinder or sphere explains it.
+    fn curved(&self, points: &[Point3<f64>], ids: Vec<usize>) -> Option<Segment> {
+        let pts: Vec<Point3<f64>> = ids.iter().map(|&i| points[i]).collect();
+        let index = PointIndex::new(&pts);
+        let nb = Neighbourhoods::new(&pts, &index, self.k);
+        let own: Vec<usize> = (0..pts.len()).collect();
+        let residual = median(&mut nb.residual.clone()).unwrap_or(0.0);
+        let sigma = self.sigma.max(residual);
+        // A fine σ of 0: the curved models are always tried.
+        let c = classify(
+            &pts,
+            &nb.normals,
+            &own,
+            (sigma, 0.0),
+            self.tolerance,
+            self.spheres,
+        );
+        match c.model? {
+            SurfaceModel::Plane { .. } => None,
+            model => Some(Segment {
+                points: ids,
+                model,
+                rms: c.rms,
+            }),
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use std::f64::consts::TAU;
+
+    use nalgebra::Vector3;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::StandardNormal;
+
+    use super::super::{DetectOptions, detect};
+    use super::*;
+
+    #[test]
+    fn a_pipe_thinner_than_a_neighbourhood_is_found_beside_its_floor() {
+        // A floor of 1000 points/m² (spacing ≈ 1.6 cm) and a pipe of radius 5 cm lying
+        // 10 cm above it along x at the same density, σ = 5 mm: 16-point neighbourhoods
+        // (R ≈ 7 cm) wrap most of the pipe's half-circumference.
+        let mut rng = ChaCha8Rng::seed_from_u64(9);
+        let gauss = |rng: &mut ChaCha8Rng| 0.005 * rng.sample::<f64, _>(StandardNormal);
+        let mut points = Vec::new();
+        for _ in 0..8000 {
+            let (x, y) = (rng.random::<f64>() * 4.0, rng.random::<f64>() * 2.0);
+            points.push(Point3::new(x, y, gauss(&mut rng)));
+        }
+        let (r, centre) = (0.05, Vector3::new(0.0, 1.0, 0.15));
+        let on_pipe = (TAU * r * 3.0 * 1000.0) as usize;
+        for _ in 0..on_pipe {
+            let (t, x) = (rng.random::<f64>() * TAU, 0.5 + rng.random::<f64>() * 3.0);
+            let radial = Vector3::new(0.0, t.cos(), t.sin());
+            points.push(Point3::from(
+                centre + Vector3::x() * x + radial * (r + gauss(&mut rng)),
+            ));
+        }
+        let index = PointIndex::new(&points);
+        let d = detect(&points, &index, &DetectOptions::default()).unwrap();
+        let pipes: Vec<&Segment> = d
+            .segments
+            .iter()
+            .filter(|s| s.model.name() == "cylinder")
+            .collect();
+        assert_eq!(pipes.len(), 1, "{:?}", d.segments.iter().map(|s| (s.points.len(), s.model)).collect::<Vec<_>>());
+        let SurfaceModel::Cylinder { axis, radius, .. } = pipes[0].model else {
+            unreachable!()
+        };
+        assert!((radius - r).abs() < 0.05 * r, "r = {radius}");
+        assert!(axis.x.abs() > 3f64.to_radians().cos(), "{axis}");
+        let on = pipes[0].points.iter().filter(|&&i| i >= 8000).count();
+        assert!(on as f64 > 0.8 * on_pipe as f64, "{on} of {on_pipe}");
+        assert!(on as f64 > 0.98 * pipes[0].points.len() as f64);
+    }
+}
