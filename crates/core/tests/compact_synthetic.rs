@@ -82,7 +82,12 @@ fn axis(p: &Primitive) -> Vector3<f64> {
 }
 
 fn angle_deg(a: &Vector3<f64>, b: &Vector3<f64>) -> f64 {
-    a.normalize().dot(&b.normalize()).abs().min(1.0).acos().to_degrees()
+    a.normalize()
+        .dot(&b.normalize())
+        .abs()
+        .min(1.0)
+        .acos()
+        .to_degrees()
 }
 
 /// Fits the scene and measures it against its truth.
@@ -170,7 +175,10 @@ fn failures(m: &Measured) -> Vec<String> {
     let mut out = Vec::new();
     let (t, f) = (m.true_surfaces as f64, m.fitted as f64);
     if (f - t).abs() > COUNT_TOLERANCE * t {
-        out.push(format!("count {} for {} true surfaces", m.fitted, m.true_surfaces));
+        out.push(format!(
+            "count {} for {} true surfaces",
+            m.fitted, m.true_surfaces
+        ));
     }
     if m.double_cover >= MAX_OVERLAP {
         out.push(format!("double cover {:.4}", m.double_cover));
@@ -237,6 +245,15 @@ fn a_room_with_a_table_on_legs() {
 }
 
 #[test]
+#[ignore = "target not met by the truth itself: model→point 4.65 σ, the true faces 4.58 σ, at σ = 3 mm and 1.3 cm spacing (every other target met: 15 of 15, double cover 0.03 %, p→m 0.80 σ)"]
+fn a_rotated_room_with_low_noise() {
+    // The mean distance from a surface to the nearest of randomly drawn points is about
+    // half their spacing whatever the noise: at σ ≪ spacing, model→point ≤ 2 σ asks for
+    // less than the sampling allows.
+    assert_targets("rotated-low-noise", &preset("rotated-low-noise"));
+}
+
+#[test]
 #[ignore = "target not met by the truth itself: see the test's docs"]
 fn literal_overlap_below_one_percent() {
     // The literal measure counts the band of width h = 2 spacings along every edge
@@ -245,7 +262,10 @@ fn literal_overlap_below_one_percent() {
     for (name, params) in room_presets().unwrap() {
         let (m, _) = measure(name, &room(&params).unwrap());
         if m.overlap >= MAX_OVERLAP {
-            failed.push(format!("{name}: {:.4} (truth {:.4})", m.overlap, m.truth_overlap));
+            failed.push(format!(
+                "{name}: {:.4} (truth {:.4})",
+                m.overlap, m.truth_overlap
+            ));
         }
     }
     assert!(failed.is_empty(), "{failed:?}");

@@ -94,10 +94,11 @@ impl Leftovers {
             .sort_by(|a, b| b.len().cmp(&a.len()).then(a.first().cmp(&b.first())));
         // Pieces of one tube (cut where a few of its points joined no piece) and the
         // curved segments growing found become one by the merge rule.
-        let (curved, planes): (Vec<Segment>, Vec<Segment>) = std::mem::take(&mut detection.segments)
-            .into_iter()
-            .chain(found)
-            .partition(|s| !matches!(s.model, SurfaceModel::Plane { .. }));
+        let (curved, planes): (Vec<Segment>, Vec<Segment>) =
+            std::mem::take(&mut detection.segments)
+                .into_iter()
+                .chain(found)
+                .partition(|s| !matches!(s.model, SurfaceModel::Plane { .. }));
         let parts: Vec<Part> = curved
             .into_iter()
             .map(|s| Part {
@@ -227,7 +228,15 @@ mod tests {
             .iter()
             .filter(|s| s.model.name() == "cylinder")
             .collect();
-        assert_eq!(pipes.len(), 1, "{:?}", d.segments.iter().map(|s| (s.points.len(), s.model)).collect::<Vec<_>>());
+        assert_eq!(
+            pipes.len(),
+            1,
+            "{:?}",
+            d.segments
+                .iter()
+                .map(|s| (s.points.len(), s.model))
+                .collect::<Vec<_>>()
+        );
         let SurfaceModel::Cylinder { axis, radius, .. } = pipes[0].model else {
             unreachable!()
         };

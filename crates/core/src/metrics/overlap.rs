@@ -128,7 +128,8 @@ fn is_covered<'a>(
                     continue;
                 }
                 let n = *normal.get_or_insert_with(|| surface_normal(a, x, spacing));
-                let along = d <= COINCIDENT_SPACINGS * spacing || offset.dot(&n).abs() >= cos_max * d;
+                let along =
+                    d <= COINCIDENT_SPACINGS * spacing || offset.dot(&n).abs() >= cos_max * d;
                 if along && surface_normal(b, &y, spacing).dot(&n).abs() >= cos_max {
                     return true;
                 }
@@ -168,8 +169,17 @@ fn ball_neighbours(model: &[Primitive], h: f64) -> Result<Vec<Vec<usize>>> {
             });
         }
     }
-    let class_of = |r: f64| if r > 0.0 { r.log2().floor() as i32 } else { i32::MIN };
-    let mut keys: Vec<i32> = model.iter().map(|p| class_of(p.bounding_radius())).collect();
+    let class_of = |r: f64| {
+        if r > 0.0 {
+            r.log2().floor() as i32
+        } else {
+            i32::MIN
+        }
+    };
+    let mut keys: Vec<i32> = model
+        .iter()
+        .map(|p| class_of(p.bounding_radius()))
+        .collect();
     keys.sort_unstable();
     keys.dedup();
     let classes: Vec<(PointIndex, Vec<usize>, f64)> = keys
@@ -313,7 +323,10 @@ mod tests {
         let (near, double) = shares(&[plane, tube], 0.01);
         let strip = (2.0f64 * 0.1 * 0.01).sqrt();
         let expected = (2.0 * strip + 2.0 * strip) / (0.4 + std::f64::consts::TAU * 0.1);
-        assert!((near - expected).abs() < 0.2 * expected, "{near} vs {expected}");
+        assert!(
+            (near - expected).abs() < 0.2 * expected,
+            "{near} vs {expected}"
+        );
         assert!(double > 0.5 * expected && double <= near, "{double}");
     }
 

@@ -49,7 +49,7 @@ pub use pipe::{PipeParams, pipe};
 pub use registration::{RegistrationParams, asymmetric_object, registration};
 pub use room::{Furniture, RoomGeometry, Tube};
 pub use room_presets::{
-    PRESET_DENSITY, PRESET_RANGE_SIGMA, PRESET_SIGMA, room_preset, room_presets,
+    LOW_NOISE_SIGMA, PRESET_DENSITY, PRESET_RANGE_SIGMA, PRESET_SIGMA, room_preset, room_presets,
 };
 pub use room_view::{
     KINECT_DISPARITY_STEP, MIN_SENSOR_DEPTH, RoomParams, RoomScene, RoomView, room,

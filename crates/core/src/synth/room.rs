@@ -147,9 +147,8 @@ impl RoomGeometry {
         for (k, v) in ["size.x", "size.y", "size.z"].iter().zip(self.size.iter()) {
             positive(k, *v)?;
         }
-        let inside = |p: &Point3<f64>| {
-            (0..3).all(|k| p[k] >= -CONTACT && p[k] <= self.size[k] + CONTACT)
-        };
+        let inside =
+            |p: &Point3<f64>| (0..3).all(|k| p[k] >= -CONTACT && p[k] <= self.size[k] + CONTACT);
         for (i, f) in self.furniture.iter().enumerate() {
             check::finite(&format!("furniture[{i}].min"), f.min.coords.as_slice())?;
             check::finite(&format!("furniture[{i}].size"), f.size.as_slice())?;
@@ -202,7 +201,9 @@ impl RoomGeometry {
         for (i, f) in self.furniture.iter().enumerate() {
             let (lo, hi) = (f.min.coords, f.max().coords);
             let covered = self.furniture.iter().enumerate().any(|(j, g)| {
-                j != i && (g.min.z - hi.z).abs() < CONTACT && contains(&g.footprint(), &f.footprint())
+                j != i
+                    && (g.min.z - hi.z).abs() < CONTACT
+                    && contains(&g.footprint(), &f.footprint())
             });
             if !covered {
                 out.push(face(2, 1.0, hi.z, &lo, &hi, &[])?);
@@ -210,8 +211,12 @@ impl RoomGeometry {
             if f.min.z > CONTACT {
                 out.push(self.box_bottom(i)?);
             }
-            for (axis, sign, at) in [(0, -1.0, lo.x), (0, 1.0, hi.x), (1, -1.0, lo.y), (1, 1.0, hi.y)]
-            {
+            for (axis, sign, at) in [
+                (0, -1.0, lo.x),
+                (0, 1.0, hi.x),
+                (1, -1.0, lo.y),
+                (1, 1.0, hi.y),
+            ] {
                 out.push(face(axis, sign, at, &lo, &hi, &[])?);
             }
         }
@@ -329,7 +334,10 @@ fn face(
     let n = Vector3::ith(axis, sign);
     let m = Matrix3::from_columns(&[Vector3::ith(u, 1.0), Vector3::ith(v, 1.0), n]);
     let rotation = UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m));
-    Ok(Primitive::new(Shape::Plane(shape), Pose::new(rotation, centre)))
+    Ok(Primitive::new(
+        Shape::Plane(shape),
+        Pose::new(rotation, centre),
+    ))
 }
 
 /// The cylinder of a tube: local z along its axis, centred at the axis midpoint.
@@ -373,7 +381,10 @@ mod tests {
         }
         // The floor has two holes: its area is the room's less the two footprints.
         let floor = faces[0].area();
-        assert!((floor - (20.0 - 1.2 * 0.8 - 0.6 * 0.5)).abs() < 1e-9, "{floor}");
+        assert!(
+            (floor - (20.0 - 1.2 * 0.8 - 0.6 * 0.5)).abs() < 1e-9,
+            "{floor}"
+        );
         // Every corner of the table top's face lies on the table top.
         let top = &faces[5];
         assert!((top.area() - 1.2 * 0.8).abs() < 1e-9);
@@ -396,7 +407,11 @@ mod tests {
         assert!((slab_bottom.area() - (1.2 * 0.8 - 4.0 * 0.06 * 0.06)).abs() < 1e-9);
         let pole_cut = std::f64::consts::PI * 0.01; // ≈ the 24-gon's area
         let floor = 20.0 - 4.0 * 0.06 * 0.06 - pole_cut;
-        assert!((faces[0].area() - floor).abs() < 2e-3, "{}", faces[0].area());
+        assert!(
+            (faces[0].area() - floor).abs() < 2e-3,
+            "{}",
+            faces[0].area()
+        );
         assert!(matches!(faces[29].shape, Shape::Cylinder { radius, .. } if radius == 0.1));
         // Bad geometry is refused.
         g.furniture.push(Furniture::new(
@@ -405,7 +420,10 @@ mod tests {
         ));
         assert!(g.surfaces().is_err(), "intersecting boxes");
         let against_wall = RoomGeometry {
-            furniture: vec![Furniture::new(Point3::origin(), Vector3::new(1.0, 1.0, 1.0))],
+            furniture: vec![Furniture::new(
+                Point3::origin(),
+                Vector3::new(1.0, 1.0, 1.0),
+            )],
             ..Default::default()
         };
         assert!(against_wall.validate().is_err());

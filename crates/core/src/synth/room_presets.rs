@@ -17,6 +17,11 @@ pub const PRESET_DENSITY: f64 = 1400.0;
 /// of their point spacing, the regime of a depth camera at 2–3 m.
 pub const PRESET_SIGMA: f64 = 0.01;
 
+/// Noise σ of the `rotated-low-noise` room (metres): a fifth of its spacing, where the
+/// sampling's own gaps (not the noise) set the distance from a surface to its nearest
+/// point.
+pub const LOW_NOISE_SIGMA: f64 = 0.003;
+
 /// Range noise σ of the depth-camera rooms (metres), before quantisation.
 pub const PRESET_RANGE_SIGMA: f64 = 0.002;
 
@@ -56,6 +61,7 @@ fn camera_room() -> RoomGeometry {
 /// | `kinect-no-occlusion` | the default room | area-uniform, depth quantised as the corner camera would |
 /// | `millimetre` | `rotated` a thousand times smaller (unit 10⁻³) | area-uniform |
 /// | `table-on-legs` | `rotated` with a table top on four 12 cm legs (30 faces) | area-uniform |
+/// | `rotated-low-noise` | `rotated` with σ = [`LOW_NOISE_SIGMA`], a fifth of the spacing | area-uniform |
 pub fn room_presets() -> Result<Vec<(&'static str, RoomParams)>> {
     let uniform = RoomParams {
         view: RoomView::Uniform {
@@ -77,7 +83,13 @@ pub fn room_presets() -> Result<Vec<(&'static str, RoomParams)>> {
         ..Default::default()
     };
     Ok(vec![
-        ("rotated", RoomParams { seed: 1, ..uniform.clone() }),
+        (
+            "rotated",
+            RoomParams {
+                seed: 1,
+                ..uniform.clone()
+            },
+        ),
         (
             "pipe-and-pole",
             RoomParams {
@@ -135,6 +147,14 @@ pub fn room_presets() -> Result<Vec<(&'static str, RoomParams)>> {
             RoomParams {
                 geometry: legs,
                 seed: 6,
+                ..uniform.clone()
+            },
+        ),
+        (
+            "rotated-low-noise",
+            RoomParams {
+                sigma: LOW_NOISE_SIGMA,
+                seed: 7,
                 ..uniform
             },
         ),
