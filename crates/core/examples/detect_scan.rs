@@ -16,7 +16,7 @@ use primfit_core::io::read_cloud;
 use primfit_core::spatial::PointIndex;
 
 /// Planes listed individually.
-const LISTED_PLANES: usize = 10;
+const LISTED_PLANES: usize = 100;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let mut args = std::env::args().skip(1);

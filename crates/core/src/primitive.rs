@@ -275,7 +275,9 @@ impl Primitive {
     /// Parses one DESIGN §3 primitive entry. `load_mesh` turns a mesh entry's `source`
     /// into its mesh (e.g. by reading the PLY file it names). A `plane` entry carries its
     /// polygon beside `size` and `pose`: `"outline": [[x, y], …]` and optionally
-    /// `"holes": [[[x, y], …], …]`, in its local frame (its `size` is ignored).
+    /// `"holes": [[[x, y], …], …]`, in its local frame (its `size` is ignored), and, for
+    /// a plane of several disjoint parts, `"more_parts": [{"outline": …, "holes": …}, …]`
+    /// beside its largest part.
     pub fn from_json(
         v: &Value,
         load_mesh: &dyn Fn(&str) -> Result<MeshShape>,
@@ -317,6 +319,7 @@ impl Primitive {
             ShapeKind::Plane => Shape::Plane(PlaneShape::from_rings_json(
                 v.get("outline"),
                 v.get("holes"),
+                v.get("more_parts"),
             )?),
         };
         shape.validate()?;
@@ -346,13 +349,15 @@ impl Serialize for Primitive {
             outline: Option<Value>,
             #[serde(skip_serializing_if = "Option::is_none")]
             holes: Option<Value>,
+            #[serde(skip_serializing_if = "Option::is_none")]
+            more_parts: Option<Value>,
         }
-        let (outline, holes) = match &self.shape {
+        let (outline, holes, more_parts) = match &self.shape {
             Shape::Plane(p) => {
-                let (outline, holes) = p.rings_json();
-                (Some(outline), Some(holes))
+                let (outline, holes, more) = p.rings_json();
+                (Some(outline), Some(holes), more)
             }
-            _ => (None, None),
+            _ => (None, None, None),
         };
         Entry {
             kind: self.shape.kind().name(),
@@ -360,6 +365,7 @@ impl Serialize for Primitive {
             pose: &self.pose,
             outline,
             holes,
+            more_parts,
         }
         .serialize(s)
     }

@@ -41,7 +41,7 @@ mod tube;
 
 pub use mesh::MeshShape;
 pub use occupancy::{MAX_OUTLINE_CELLS, MIN_COMPONENT_CELLS, MIN_HOLE_CELLS};
-pub use plane::{MAX_PLANE_VERTICES, PlaneShape};
+pub use plane::{MAX_PLANE_VERTICES, PlaneShape, Rings};
 pub use plane_fit::{fit_plane, fit_plane_primitive, plane_frame};
 pub use shapes::*;
 pub use trimesh::TriMesh;

@@ -1,11 +1,16 @@
-//! The `Plane` type: a bounded planar patch, a polygon (outer ring and optional holes) in
-//! the plane z = 0 of its local frame, normal +z. Unlike the square and the disk its
-//! extent is free-form, so a plane can end where its points end; its in-plane
-//! orientation is whatever frame the polygon was built in (see [`super::fit_plane`],
-//! which takes it from the points).
+//! The `Plane` type: a bounded planar patch, one or more disjoint polygons (each an outer
+//! ring and optional holes) in the plane z = 0 of its local frame, normal +z. Unlike the
+//! square and the disk its extent is free-form, so a plane can end where its points end;
+//! its in-plane orientation is whatever frame the polygon was built in (see
+//! [`super::fit_plane`], which takes it from the points).
 //!
-//! Queries are exact: a point's projection is inside the polygon by the even–odd rule
-//! over all rings (holes included), otherwise its closest point lies on a ring edge. The
+//! A plane of several **parts** is one surface seen in pieces: a floor cut by the
+//! occlusion shadows of the furniture on it, a table top split by a mug's shadow. It is
+//! one primitive (one pose, one existence), as a user counts surfaces.
+//!
+//! Queries are exact: a point's projection is inside the plane by the even–odd rule over
+//! all rings (holes and other parts included: parts are disjoint), otherwise its closest
+//! point lies on a ring edge. The
 //! cost of a query is linear in the number of edges; outlines from
 //! [`PlaneShape::from_points`] are simplified to a few dozen edges at most.
 
@@ -22,7 +27,7 @@ use crate::{Error, Result};
 
 /// A polygon as rings of local 2-D points: `(outline, holes)`, each ring open (first
 /// vertex not repeated).
-pub(super) type Rings = (Vec<Point2<f64>>, Vec<Vec<Point2<f64>>>);
+pub type Rings = (Vec<Point2<f64>>, Vec<Vec<Point2<f64>>>);
 
 /// Most vertices a plane may have over all its rings: the validity check of a polygon
 /// is quadratic in them (16 Ki vertices, about 10⁸ segment tests).
@@ -48,27 +53,26 @@ pub struct PlaneShape {
 
 /// The immutable data of a [`PlaneShape`].
 struct PlaneData {
-    /// Outer ring, counter-clockwise seen from +z, not closed (first ≠ last).
-    outline: Vec<Point2<f64>>,
-    /// Holes, clockwise seen from +z, not closed.
-    holes: Vec<Vec<Point2<f64>>>,
-    /// Every ring edge `[a, b]` (outline and holes).
+    /// The disjoint parts, largest area first: each an outer ring, counter-clockwise seen
+    /// from +z, and its holes, clockwise; rings not closed (first ≠ last).
+    parts: Vec<Rings>,
+    /// Every ring edge `[a, b]` (outlines and holes of every part).
     edges: Vec<[Point2<f64>; 2]>,
     /// Triangulation in z = 0, faces counter-clockwise seen from +z.
     mesh: TriMesh,
-    /// Polygon area (outline minus holes), local units².
+    /// Polygon area (outlines minus holes, over every part), local units².
     area: f64,
     /// Largest outline vertex distance from the local origin, local units.
     bounding_radius: f64,
-    /// Axis-aligned bounds of the outline: `(min, max)`.
+    /// Axis-aligned bounds of the outlines: `(min, max)`.
     bounds: (Point2<f64>, Point2<f64>),
 }
 
 impl std::fmt::Debug for PlaneShape {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
         f.debug_struct("PlaneShape")
-            .field("outline_vertices", &self.inner.outline.len())
-            .field("holes", &self.inner.holes.len())
+            .field("parts", &self.inner.parts.len())
+            .field("vertices", &self.vertex_count())
             .field("area", &self.inner.area)
             .finish()
     }
@@ -76,8 +80,7 @@ impl std::fmt::Debug for PlaneShape {
 
 impl PartialEq for PlaneShape {
     fn eq(&self, other: &Self) -> bool {
-        Arc::ptr_eq(&self.inner, &other.inner)
-            || (self.inner.outline == other.inner.outline && self.inner.holes == other.inner.holes)
+        Arc::ptr_eq(&self.inner, &other.inner) || self.inner.parts == other.inner.parts
     }
 }
 
@@ -91,41 +94,62 @@ impl PlaneShape {
     /// hole outside the outline or crossing another ring: [`Error::InvalidArgument`]), or
     /// no area.
     pub fn new(outline: Vec<Point2<f64>>, holes: Vec<Vec<Point2<f64>>>) -> Result<PlaneShape> {
-        let (outline, holes) = check_rings(outline, holes)?;
-        let polygon = to_geo(&outline, &holes);
-        if let Err(e) = polygon.check_validation() {
+        Self::from_parts(vec![(outline, holes)])
+    }
+
+    /// A plane of one or more disjoint `parts`, each `(outline, holes)` as in
+    /// [`PlaneShape::new`]. Errors as there, and [`Error::InvalidArgument`] when parts
+    /// overlap or touch; no parts is [`Error::OutOfRange`].
+    pub fn from_parts(parts: Vec<Rings>) -> Result<PlaneShape> {
+        crate::check::at_least("plane parts", parts.len(), 1)?;
+        let parts = check_parts(parts)?;
+        let polygons: Vec<Polygon<f64>> = parts.iter().map(|(o, h)| to_geo(o, h)).collect();
+        if let Err(e) = geo::MultiPolygon::new(polygons).check_validation() {
             return Err(Error::invalid(format!(
                 "plane outline is not a valid polygon: {e}"
             )));
         }
-        Self::from_valid(outline, holes)
+        Self::from_valid_parts(parts)
     }
 
-    /// [`PlaneShape::new`] without the quadratic validity check, for rings that are a
-    /// valid polygon by construction (already closed-free, finite, ≥ 3 vertices each).
-    pub(super) fn from_valid(
-        outline: Vec<Point2<f64>>,
-        holes: Vec<Vec<Point2<f64>>>,
-    ) -> Result<PlaneShape> {
-        let outline = oriented(outline, true);
-        let holes: Vec<_> = holes.into_iter().map(|h| oriented(h, false)).collect();
-        let area = signed_area(&outline) + holes.iter().map(|h| signed_area(h)).sum::<f64>();
-        if area.is_nan() || area <= 0.0 {
+    /// [`PlaneShape::from_parts`] without the quadratic validity check, for disjoint parts
+    /// that are valid polygons by construction (closed-free, finite, ≥ 3 vertices each).
+    /// Parts are put largest first.
+    pub(super) fn from_valid_parts(parts: Vec<Rings>) -> Result<PlaneShape> {
+        let mut parts: Vec<(Rings, f64)> = parts
+            .into_iter()
+            .map(|(outline, holes)| {
+                let outline = oriented(outline, true);
+                let holes: Vec<_> = holes.into_iter().map(|h| oriented(h, false)).collect();
+                let area =
+                    signed_area(&outline) + holes.iter().map(|h| signed_area(h)).sum::<f64>();
+                ((outline, holes), area)
+            })
+            .collect();
+        parts.sort_by(|a, b| b.1.total_cmp(&a.1));
+        let area: f64 = parts.iter().map(|p| p.1).sum();
+        if parts.iter().any(|p| p.1.is_nan() || p.1 <= 0.0) || area.is_nan() {
             return Err(Error::invalid("plane outline has no area"));
         }
-        let mesh = triangulate(&outline, &holes);
+        let parts: Vec<Rings> = parts.into_iter().map(|p| p.0).collect();
+        let mut mesh = TriMesh::default();
+        for (outline, holes) in &parts {
+            mesh.append(&triangulate(outline, holes));
+        }
         if (mesh.area() - area).abs() > TRIANGULATION_AREA_TOLERANCE * area {
             return Err(Error::invalid(format!(
                 "plane outline could not be triangulated (mesh area {} of polygon area {area})",
                 mesh.area()
             )));
         }
-        let edges = std::iter::once(&outline)
-            .chain(&holes)
+        let edges = parts
+            .iter()
+            .flat_map(|(o, h)| std::iter::once(o).chain(h))
             .flat_map(|ring| ring_edges(ring))
             .collect();
-        let bounding_radius = outline.iter().map(|v| v.coords.norm()).fold(0.0, f64::max);
-        let bounds = outline.iter().fold(
+        let outlines = || parts.iter().flat_map(|(o, _)| o.iter());
+        let bounding_radius = outlines().map(|v| v.coords.norm()).fold(0.0, f64::max);
+        let bounds = outlines().fold(
             (
                 Point2::from([f64::INFINITY; 2]),
                 Point2::from([f64::NEG_INFINITY; 2]),
@@ -133,8 +157,7 @@ impl PlaneShape {
             |(lo, hi), v| (lo.inf(v), hi.sup(v)),
         );
         let inner = PlaneData {
-            outline,
-            holes,
+            parts,
             edges,
             mesh,
             area,
@@ -146,23 +169,34 @@ impl PlaneShape {
         })
     }
 
-    /// The outer ring, counter-clockwise seen from +z, first vertex not repeated (local
-    /// units).
+    /// The outer ring of the largest part, counter-clockwise seen from +z, first vertex
+    /// not repeated (local units).
     pub fn outline(&self) -> &[Point2<f64>] {
-        &self.inner.outline
+        &self.inner.parts[0].0
     }
 
-    /// The holes, each clockwise seen from +z, first vertex not repeated (local units).
+    /// The holes of the largest part, each clockwise seen from +z, first vertex not
+    /// repeated (local units).
     pub fn holes(&self) -> &[Vec<Point2<f64>>] {
-        &self.inner.holes
+        &self.inner.parts[0].1
     }
 
-    /// The number of vertices over all rings.
+    /// Every part `(outline, holes)`, largest area first (the first is
+    /// [`PlaneShape::outline`] and [`PlaneShape::holes`]).
+    pub fn parts(&self) -> &[Rings] {
+        &self.inner.parts
+    }
+
+    /// The number of vertices over all rings of all parts.
     pub fn vertex_count(&self) -> usize {
-        self.inner.outline.len() + self.inner.holes.iter().map(Vec::len).sum::<usize>()
+        self.inner
+            .parts
+            .iter()
+            .map(|(o, h)| o.len() + h.iter().map(Vec::len).sum::<usize>())
+            .sum()
     }
 
-    /// Polygon area: outline minus holes (local units²).
+    /// Polygon area: outlines minus holes, over every part (local units²).
     pub fn area(&self) -> f64 {
         self.inner.area
     }
@@ -280,31 +314,73 @@ impl PlaneShape {
         Point3::from((a + b + c) / 3.0)
     }
 
-    /// The rings as JSON: `(outline, holes)` with `outline = [[x, y], …]` and `holes =
-    /// [[[x, y], …], …]` (local units, first vertex not repeated).
-    pub fn rings_json(&self) -> (Value, Value) {
+    /// The rings as JSON: `(outline, holes, more_parts)` with `outline = [[x, y], …]`
+    /// and `holes = [[[x, y], …], …]` of the largest part, and `more_parts` the other
+    /// parts as `[{"outline": …, "holes": …}, …]` (`None` for a plane of one part); local
+    /// units, first vertex not repeated.
+    pub fn rings_json(&self) -> (Value, Value, Option<Value>) {
         let ring =
             |r: &[Point2<f64>]| Value::from(r.iter().map(|v| vec![v.x, v.y]).collect::<Vec<_>>());
-        let holes = self.inner.holes.iter().map(|h| ring(h)).collect::<Vec<_>>();
-        (ring(&self.inner.outline), Value::from(holes))
+        let holes =
+            |h: &[Vec<Point2<f64>>]| Value::from(h.iter().map(|r| ring(r)).collect::<Vec<_>>());
+        let (outline, first_holes) = &self.inner.parts[0];
+        let more = &self.inner.parts[1..];
+        let more = (!more.is_empty()).then(|| {
+            Value::from(
+                more.iter()
+                    .map(|(o, h)| serde_json::json!({ "outline": ring(o), "holes": holes(h) }))
+                    .collect::<Vec<_>>(),
+            )
+        });
+        (ring(outline), holes(first_holes), more)
     }
 
     /// A plane from the JSON fields of [`PlaneShape::rings_json`]: `outline` required,
-    /// `holes` optional (absent or `null`: none). Errors name the field
-    /// ([`Error::Json`]) or the polygon's fault (see [`PlaneShape::new`]).
-    pub fn from_rings_json(outline: Option<&Value>, holes: Option<&Value>) -> Result<PlaneShape> {
-        let outline = ring_from_json(outline, "outline")?;
-        let holes = match holes {
-            None | Some(Value::Null) => Vec::new(),
-            Some(Value::Array(list)) => list
-                .iter()
-                .enumerate()
-                .map(|(k, h)| ring_from_json(Some(h), &format!("holes[{k}]")))
-                .collect::<Result<_>>()?,
-            Some(_) => return Err(Error::json("holes", "an array of rings [[x, y], …]")),
-        };
-        PlaneShape::new(outline, holes)
+    /// `holes` and `more_parts` optional (absent or `null`: none). Errors name the field
+    /// ([`Error::Json`]) or the polygon's fault (see [`PlaneShape::from_parts`]).
+    pub fn from_rings_json(
+        outline: Option<&Value>,
+        holes: Option<&Value>,
+        more_parts: Option<&Value>,
+    ) -> Result<PlaneShape> {
+        let mut parts = vec![part_from_json(outline, holes, "")?];
+        match more_parts {
+            None | Some(Value::Null) => {}
+            Some(Value::Array(list)) => {
+                for (k, part) in list.iter().enumerate() {
+                    let at = format!("more_parts[{k}].");
+                    parts.push(part_from_json(part.get("outline"), part.get("holes"), &at)?);
+                }
+            }
+            Some(_) => {
+                return Err(Error::json(
+                    "more_parts",
+                    "an array of parts {\"outline\": …, \"holes\": …}",
+                ));
+            }
+        }
+        PlaneShape::from_parts(parts)
     }
+}
+
+/// One part's rings from JSON (`at` prefixes the field names in errors).
+fn part_from_json(outline: Option<&Value>, holes: Option<&Value>, at: &str) -> Result<Rings> {
+    let outline = ring_from_json(outline, &format!("{at}outline"))?;
+    let holes = match holes {
+        None | Some(Value::Null) => Vec::new(),
+        Some(Value::Array(list)) => list
+            .iter()
+            .enumerate()
+            .map(|(k, h)| ring_from_json(Some(h), &format!("{at}holes[{k}]")))
+            .collect::<Result<_>>()?,
+        Some(_) => {
+            return Err(Error::json(
+                format!("{at}holes"),
+                "an array of rings [[x, y], …]",
+            ));
+        }
+    };
+    Ok((outline, holes))
 }
 
 /// `ceil(length / spacing)` sample columns, at least 1.
@@ -336,11 +412,17 @@ fn ring_from_json(v: Option<&Value>, field: &str) -> Result<Vec<Point2<f64>>> {
         .collect()
 }
 
-/// The cheap checks of [`PlaneShape::new`]; returns the rings without a closing vertex.
-fn check_rings(outline: Vec<Point2<f64>>, holes: Vec<Vec<Point2<f64>>>) -> Result<Rings> {
-    let outline = open(outline);
-    let holes: Vec<_> = holes.into_iter().map(open).collect();
-    let total = outline.len() + holes.iter().map(Vec::len).sum::<usize>();
+/// The cheap checks of [`PlaneShape::from_parts`]; returns the rings without a closing
+/// vertex.
+fn check_parts(parts: Vec<Rings>) -> Result<Vec<Rings>> {
+    let parts: Vec<Rings> = parts
+        .into_iter()
+        .map(|(o, h)| (open(o), h.into_iter().map(open).collect()))
+        .collect();
+    let total: usize = parts
+        .iter()
+        .map(|(o, h)| o.len() + h.iter().map(Vec::len).sum::<usize>())
+        .sum();
     if total > MAX_PLANE_VERTICES {
         return Err(Error::OverLimit {
             what: "a plane outline".into(),
@@ -350,9 +432,10 @@ fn check_rings(outline: Vec<Point2<f64>>, holes: Vec<Vec<Point2<f64>>>) -> Resul
             remedies: Vec::new(),
         });
     }
-    for (name, ring) in
-        std::iter::once(("plane outline", &outline)).chain(holes.iter().map(|h| ("plane hole", h)))
-    {
+    let rings = parts.iter().flat_map(|(outline, holes)| {
+        std::iter::once(("plane outline", outline)).chain(holes.iter().map(|h| ("plane hole", h)))
+    });
+    for (name, ring) in rings {
         crate::check::at_least(&format!("{name} vertices"), ring.len(), 3)?;
         if let Some(index) = ring
             .iter()
@@ -364,7 +447,7 @@ fn check_rings(outline: Vec<Point2<f64>>, holes: Vec<Vec<Point2<f64>>>) -> Resul
             });
         }
     }
-    Ok((outline, holes))
+    Ok(parts)
 }
 
 /// The ring without its closing vertex (when the last equals the first).

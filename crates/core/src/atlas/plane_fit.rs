@@ -40,21 +40,41 @@ impl PlaneShape {
         let (polygons, _cell) = super::outline::outlines(points, cell)?;
         polygons
             .into_iter()
-            .map(|(outline, holes)| {
-                let n = outline.len() + holes.iter().map(Vec::len).sum::<usize>();
-                if n > super::MAX_PLANE_VERTICES {
-                    return Err(Error::OverLimit {
-                        what: "a plane outline".into(),
-                        need: n as f64,
-                        limit: super::MAX_PLANE_VERTICES as f64,
-                        unit: crate::error::Unit::Count("vertices"),
-                        remedies: vec![crate::error::Remedy::Raise("cell")],
-                    });
-                }
-                PlaneShape::from_valid(outline, holes)
+            .map(|part| {
+                check_vertex_count(std::slice::from_ref(&part))?;
+                PlaneShape::from_valid_parts(vec![part])
             })
             .collect()
     }
+
+    /// One plane whose parts are every connected part of `points`, traced as in
+    /// [`PlaneShape::parts_from_points`]: a surface seen in pieces (occlusion shadows,
+    /// sensor holes) as one primitive. Errors as there, counting the vertices of all
+    /// parts together against [`super::MAX_PLANE_VERTICES`].
+    pub fn whole_from_points(points: &[Point2<f64>], cell: f64) -> Result<PlaneShape> {
+        let (parts, _cell) = super::outline::outlines(points, cell)?;
+        check_vertex_count(&parts)?;
+        PlaneShape::from_valid_parts(parts)
+    }
+}
+
+/// [`Error::OverLimit`] when `parts` have more than [`super::MAX_PLANE_VERTICES`]
+/// vertices together.
+fn check_vertex_count(parts: &[super::Rings]) -> Result<()> {
+    let n: usize = parts
+        .iter()
+        .map(|(outline, holes)| outline.len() + holes.iter().map(Vec::len).sum::<usize>())
+        .sum();
+    if n > super::MAX_PLANE_VERTICES {
+        return Err(Error::OverLimit {
+            what: "a plane outline".into(),
+            need: n as f64,
+            limit: super::MAX_PLANE_VERTICES as f64,
+            unit: crate::error::Unit::Count("vertices"),
+            remedies: vec![crate::error::Remedy::Raise("cell")],
+        });
+    }
+    Ok(())
 }
 
 /// The local frame of a plane through `points` (scene coordinates): origin at their

@@ -521,3 +521,94 @@ fn plane_primitives_export_a_mesh_and_keep_their_own_templates() {
     );
     assert_eq!(again.unwrap().templates.len(), 1);
 }
+
+/// An axis-aligned square ring `[x0, x0 + side] × [y0, y0 + side]`.
+fn square_ring(x0: f64, y0: f64, side: f64) -> Vec<Point2<f64>> {
+    [(0.0, 0.0), (side, 0.0), (side, side), (0.0, side)]
+        .iter()
+        .map(|(dx, dy)| Point2::new(x0 + dx, y0 + dy))
+        .collect()
+}
+
+#[test]
+fn a_plane_of_two_parts_is_one_surface_with_both_areas() {
+    // A 2 × 2 square with a 0.5 × 0.5 hole, and beside it (a gap of 1) a 1 × 1 square.
+    let big = (
+        square_ring(0.0, 0.0, 2.0),
+        vec![square_ring(0.75, 0.75, 0.5)],
+    );
+    let small = (square_ring(3.0, 0.0, 1.0), Vec::new());
+    let shape = PlaneShape::from_parts(vec![small, big]).expect("two disjoint parts");
+    assert_eq!(shape.parts().len(), 2);
+    assert!((shape.area() - (4.0 - 0.25 + 1.0)).abs() < 1e-12);
+    assert!((shape.mesh().area() - shape.area()).abs() < 1e-9);
+    // Largest part first: outline() and holes() are the big square's.
+    assert_eq!(shape.holes().len(), 1);
+    for (x, y, inside) in [
+        (0.1, 0.1, true),
+        (1.0, 1.0, false), // the hole
+        (2.5, 0.5, false), // the gap
+        (3.5, 0.5, true),  // the second part
+        (4.5, 0.5, false),
+    ] {
+        assert_eq!(shape.contains(x, y), inside, "({x}, {y})");
+    }
+    // The gap's middle is closest to the big part's edge x = 2 (0.5 away, as to x = 3).
+    let c = shape.closest_point(&Point3::new(2.4, 0.5, 0.3));
+    assert!((c - Point3::new(2.0, 0.5, 0.0)).norm() < 1e-12, "{c}");
+    // Samples of both parts, area-uniform.
+    let samples = shape.sample(0.05);
+    let right = samples.iter().filter(|p| p.x > 2.5).count() as f64;
+    let share = right / samples.len() as f64;
+    assert!((share - 1.0 / 4.75).abs() < 0.02, "{share}");
+    // JSON: the largest part as outline/holes, the other under more_parts, read back.
+    let primitive = Primitive::new(Shape::Plane(shape.clone()), crate::Pose::identity());
+    let json = primitive.to_json();
+    assert_eq!(json["more_parts"].as_array().map(Vec::len), Some(1));
+    let back = Primitive::from_json(&json, &|_| unreachable!()).expect("reads back");
+    assert_eq!(plane(&back.shape).parts(), shape.parts());
+    // A plane of one part writes no more_parts.
+    let one = Primitive::new(
+        Shape::Plane(PlaneShape::new(square_ring(0.0, 0.0, 1.0), Vec::new()).unwrap()),
+        crate::Pose::identity(),
+    );
+    assert!(one.to_json().get("more_parts").is_none());
+}
+
+#[test]
+fn overlapping_parts_and_broken_more_parts_are_refused() {
+    let a = (square_ring(0.0, 0.0, 2.0), Vec::new());
+    let b = (square_ring(1.0, 1.0, 2.0), Vec::new());
+    assert!(matches!(
+        PlaneShape::from_parts(vec![a.clone(), b]),
+        Err(Error::InvalidArgument(_))
+    ));
+    assert!(PlaneShape::from_parts(Vec::new()).is_err());
+    let outline = serde_json::json!([[0, 0], [1, 0], [1, 1]]);
+    for (more, field) in [
+        (serde_json::json!(3), "more_parts"),
+        (serde_json::json!([{"holes": []}]), "more_parts[0].outline"),
+        (
+            serde_json::json!([{"outline": [[5, 0], [6, 0], [6, 1]], "holes": 1}]),
+            "more_parts[0].holes",
+        ),
+    ] {
+        let err = PlaneShape::from_rings_json(Some(&outline), None, Some(&more)).unwrap_err();
+        assert!(err.to_string().contains(field), "{err}");
+    }
+}
+
+#[test]
+fn whole_from_points_keeps_every_part_of_a_scan_cut_in_two() {
+    // A rectangle scan with a 0.2-wide band missing across it (an occlusion shadow).
+    let points = scan(0.6, 0.0, 7, |x, y| {
+        rectangle(x, y) && !(-0.1..0.1).contains(&x)
+    });
+    let whole = PlaneShape::whole_from_points(&points, CELL).expect("outline");
+    let parts = PlaneShape::parts_from_points(&points, CELL).expect("outline");
+    assert_eq!(whole.parts().len(), 2);
+    assert_eq!(parts.len(), 2);
+    let sum: f64 = parts.iter().map(PlaneShape::area).sum();
+    assert!((whole.area() - sum).abs() < 1e-9 * sum);
+    assert!(!whole.contains(0.0, 0.0));
+}

@@ -1,6 +1,7 @@
 //! Candidates proposed from a [`Detection`]: each planar segment becomes one bounded
-//! `plane` per connected part of its points (the outline ends where its points end), each
-//! cylinder or sphere segment its bounded primitive.
+//! `plane` whose parts are the connected parts of its points (the outline ends where its
+//! points end; a surface cut by occlusion shadows stays one primitive), each cylinder or
+//! sphere segment its bounded primitive.
 
 use nalgebra::{Point2, Point3};
 use rayon::prelude::*;
@@ -64,7 +65,9 @@ fn segment_candidates(
         SurfaceModel::Plane { normal, .. } => {
             let own: Vec<Point3<f64>> = segment.points.iter().map(|&i| points[i]).collect();
             let spacing = own_spacing(&own).unwrap_or(fallback_spacing);
-            plane_parts(&own, normal, OUTLINE_CELLS_PER_SPACING * spacing)
+            bounded_plane(&own, normal, OUTLINE_CELLS_PER_SPACING * spacing)
+                .into_iter()
+                .collect()
         }
         _ => segment.primitive().into_iter().collect(),
     }
@@ -76,15 +79,14 @@ fn own_spacing(points: &[Point3<f64>]) -> Option<f64> {
     median_spacing(points, &index, SPACING_PROBES).filter(|s| *s > 0.0)
 }
 
-/// One bounded plane per connected part of `points` (all on the plane of `normal`).
-fn plane_parts(
+/// The bounded plane of `points` (all on the plane of `normal`), one part per connected
+/// part of them; `None` when they give no outline.
+fn bounded_plane(
     points: &[Point3<f64>],
     normal: nalgebra::Vector3<f64>,
     cell: f64,
-) -> Vec<Primitive> {
-    let Ok(pose) = plane_frame(points, Some(normal)) else {
-        return Vec::new();
-    };
+) -> Option<Primitive> {
+    let pose = plane_frame(points, Some(normal)).ok()?;
     let local: Vec<Point2<f64>> = points
         .iter()
         .map(|p| {
@@ -92,11 +94,8 @@ fn plane_parts(
             Point2::new(q.x, q.y)
         })
         .collect();
-    PlaneShape::parts_from_points(&local, cell)
-        .unwrap_or_default()
-        .into_iter()
-        .map(|shape| Primitive::new(Shape::Plane(shape), pose))
-        .collect()
+    let shape = PlaneShape::whole_from_points(&local, cell).ok()?;
+    Some(Primitive::new(Shape::Plane(shape), pose))
 }
 
 /// The samples (scene coordinates, about `spacing` apart) by which a candidate is judged:

@@ -118,9 +118,7 @@ fn try_merge(
     tolerance: f64,
 ) -> Option<Part> {
     match (a.model?, b.model?) {
-        (SurfaceModel::Plane { .. }, SurfaceModel::Plane { .. }) => {
-            merge_planes(a, b, tolerance)
-        }
+        (SurfaceModel::Plane { .. }, SurfaceModel::Plane { .. }) => merge_planes(a, b, tolerance),
         (SurfaceModel::Cylinder { .. }, SurfaceModel::Cylinder { .. }) => {
             merge_cylinders(a, b, points, cos_angle, tolerance)
         }
