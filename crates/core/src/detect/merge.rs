@@ -24,6 +24,16 @@
 //! surfaces with this. Cylinders are filtered first (axes within the growing angle,
 //! radii and axis lines close): their union needs a refit.
 //!
+//! **Layers.** Two *parallel* planes (normals within the growing angle) also merge when
+//! they are at most [`LAYER_SIGMAS`] σ apart (the smaller σ of the two), the distance
+//! within which the compact model counts a point as explained
+//! ([`crate::compact::CAP_SIGMAS`]): two planes closer than that explain each other's
+//! points, so keeping both covers one surface twice. This is what quantised depth makes
+//! of a wall seen face-on: stereo disparity steps cut it into interleaved flat layers one
+//! depth step apart (6 mm at 2 m on the shared table scan, about 4 σ of the layers' own
+//! noise), each flat within the noise, none of which is a surface of its own. Steps
+//! larger than the cap (a book on a table, a stair) stay apart.
+//!
 //! Order: segments are visited by decreasing size (ties: lower first point), each
 //! absorbing every later segment that passes, until no pair merges; the result does not
 //! depend on the thread count.
@@ -45,6 +55,10 @@ const RADIUS_RATIO_GAP: f64 = 0.2;
 /// Cylinders merge only if the longer one's axis passes within this fraction of the
 /// larger radius of the other's axis point.
 const AXIS_OFFSET_GAP: f64 = 0.2;
+
+/// Parallel planes at most this many σ apart merge as layers of one surface (module
+/// docs): the compact model's cap.
+pub const LAYER_SIGMAS: f64 = crate::compact::CAP_SIGMAS;
 
 /// A part's RMS about the union's model may exceed its own model's RMS (or its σ, if
 /// larger) by at most this factor (dimensionless).
@@ -118,7 +132,9 @@ fn try_merge(
     tolerance: f64,
 ) -> Option<Part> {
     match (a.model?, b.model?) {
-        (SurfaceModel::Plane { .. }, SurfaceModel::Plane { .. }) => merge_planes(a, b, tolerance),
+        (SurfaceModel::Plane { .. }, SurfaceModel::Plane { .. }) => {
+            merge_planes(a, b, cos_angle, tolerance)
+        }
         (SurfaceModel::Cylinder { .. }, SurfaceModel::Cylinder { .. }) => {
             merge_cylinders(a, b, points, cos_angle, tolerance)
         }
@@ -126,13 +142,32 @@ fn try_merge(
     }
 }
 
-/// The union of two plane parts if its plane explains both (O(1) by moments).
-fn merge_planes(a: &Part, b: &Part, tolerance: f64) -> Option<Part> {
+/// The union of two plane parts if its plane explains both, or if they are parallel
+/// layers of one surface (module docs; O(1) by moments).
+fn merge_planes(a: &Part, b: &Part, cos_angle: f64, tolerance: f64) -> Option<Part> {
     let mut union = a.moments;
     union += &b.moments;
     let fit = union.plane()?;
-    let fits = |p: &Part| still_fits(p, p.moments.rms_about(&fit.point, &fit.normal), tolerance);
-    if !(fits(a) && fits(b)) {
+    let about = |p: &Part| p.moments.rms_about(&fit.point, &fit.normal);
+    let explained = still_fits(a, about(a), tolerance) && still_fits(b, about(b), tolerance);
+    let layers = || match (a.model, b.model) {
+        (
+            Some(SurfaceModel::Plane {
+                point: pa,
+                normal: na,
+            }),
+            Some(SurfaceModel::Plane {
+                point: pb,
+                normal: nb,
+            }),
+        ) => {
+            // The distance between the two planes, along either normal.
+            let offset = na.dot(&(pb - pa)).abs().max(nb.dot(&(pb - pa)).abs());
+            na.dot(&nb).abs() >= cos_angle && offset <= LAYER_SIGMAS * a.sigma.min(b.sigma)
+        }
+        _ => false,
+    };
+    if !(explained || layers()) {
         return None;
     }
     let model = SurfaceModel::Plane {
@@ -310,6 +345,42 @@ mod tests {
         };
         let truth = Vector3::new(-slope, 0.0, 1.0).normalize();
         assert!(normal.dot(&truth).abs() > 0.999, "{normal}");
+    }
+
+    #[test]
+    fn interleaved_depth_layers_merge_and_a_book_on_the_table_does_not() {
+        // A wall z ≈ 0 seen face-on through quantised depth: 2 cm blobs alternate between
+        // the levels z = 0 and z = q (q = 4 σ), each level flat within σ. Beside it a
+        // 20 cm book whose top is 10 σ above the wall's plane.
+        let (sigma, q) = (0.001, 0.004);
+        let mut pts = Vec::new();
+        let (mut low, mut high, mut book) = (Vec::new(), Vec::new(), Vec::new());
+        for i in 0..100 {
+            for j in 0..50 {
+                let (x, y) = (i as f64 * 0.005, j as f64 * 0.005);
+                let ripple = if (i + j) % 2 == 0 { sigma } else { -sigma };
+                let level = ((i / 4) + (j / 4)) % 2;
+                let list = if level == 0 { &mut low } else { &mut high };
+                list.push(pts.len());
+                pts.push(Point3::new(x, y, level as f64 * q + ripple));
+            }
+        }
+        for i in 0..40 {
+            for j in 0..40 {
+                let (x, y) = (0.6 + i as f64 * 0.005, j as f64 * 0.005);
+                let ripple = if (i + j) % 2 == 0 { sigma } else { -sigma };
+                book.push(pts.len());
+                pts.push(Point3::new(x, y, 10.0 * sigma + ripple));
+            }
+        }
+        let parts = vec![
+            plane_part(&pts, low, sigma),
+            plane_part(&pts, high, sigma),
+            plane_part(&pts, book, sigma),
+        ];
+        let merged = merge_parts(parts, &pts, 5f64.to_radians().cos(), 2.5);
+        let sizes: Vec<usize> = merged.iter().map(|p| p.ids.len()).collect();
+        assert_eq!(sizes, [5000, 1600]);
     }
 
     #[test]
