@@ -224,7 +224,9 @@ class FitResult:
         The chosen primitives as in ``result.json``: ``type``, ``size``, ``pose``
         (``translation``, ``rotation`` quaternion ``[w, x, y, z]``, ``scale``),
         ``existence``; a ``"plane"`` also has ``outline`` ``[[x, y], ...]`` and
-        ``holes`` ``[[[x, y], ...], ...]`` in its local frame (z = 0).
+        ``holes`` ``[[[x, y], ...], ...]`` in its local frame (z = 0), and, when it
+        was seen in several disjoint pieces, ``more_parts``
+        ``[{"outline": ..., "holes": ...}, ...]`` beside its largest part.
     existence : (P,) float64 array
         Continuous existence probability of each chosen primitive.
     metrics : dict
