@@ -165,3 +165,13 @@ def write_ply(
 ) -> None: ...
 def read_mesh(path: str | os.PathLike[str]) -> tuple[_F64, _I64]: ...
 def write_mesh(path: str | os.PathLike[str], primitives_json: str, *, ascii: bool = False) -> None: ...
+def render(
+    path: str | os.PathLike[str],
+    cloud: _F64,
+    primitives_json: str,
+    *,
+    width: int = 1200,
+    height: int = 900,
+    view: tuple[float, float] | None = None,
+    scale: float | None = None,
+) -> float: ...
