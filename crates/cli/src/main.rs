@@ -43,8 +43,10 @@ enum Command {
     Register(commands::register::RegisterArgs),
     /// Draw a scan and a result as a PNG: points coloured by distance to the model,
     /// primitives shaded.
+    #[command(allow_negative_numbers = true)]
     Render(commands::render::RenderArgs),
     /// Write one self-contained HTML page to orbit a scan and a result in a browser.
+    #[command(allow_negative_numbers = true)]
     View(commands::view::ViewArgs),
 }
 

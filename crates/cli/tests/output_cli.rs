@@ -31,7 +31,10 @@ fn primfit(dir: &Path, args: &[&str]) -> Output {
         .output()
         .expect("run primfit");
     let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(!stderr.contains("panicked"), "primfit {args:?} panicked:\n{stderr}");
+    assert!(
+        !stderr.contains("panicked"),
+        "primfit {args:?} panicked:\n{stderr}"
+    );
     out
 }
 
@@ -40,7 +43,10 @@ fn ok(dir: &Path, args: &[&str]) -> String {
     let out = primfit(dir, args);
     let text = String::from_utf8_lossy(&out.stdout).into_owned();
     let err = String::from_utf8_lossy(&out.stderr);
-    assert!(out.status.success(), "primfit {args:?} failed:\n{text}\n{err}");
+    assert!(
+        out.status.success(),
+        "primfit {args:?} failed:\n{text}\n{err}"
+    );
     text
 }
 
@@ -51,9 +57,20 @@ fn fails(dir: &Path, args: &[&str], needle: &str) {
     let out = primfit(dir, args);
     let stderr = String::from_utf8_lossy(&out.stderr);
     assert_eq!(out.status.code(), Some(1), "primfit {args:?}:\n{stderr}");
-    assert_eq!(stderr.trim_end().lines().count(), 1, "one line expected:\n{stderr}");
-    assert!(stderr.starts_with("error:") && stderr.contains(needle), "{needle}: {stderr}");
-    assert_eq!(before, file_names(dir), "primfit {args:?} wrote or removed files");
+    assert_eq!(
+        stderr.trim_end().lines().count(),
+        1,
+        "one line expected:\n{stderr}"
+    );
+    assert!(
+        stderr.starts_with("error:") && stderr.contains(needle),
+        "{needle}: {stderr}"
+    );
+    assert_eq!(
+        before,
+        file_names(dir),
+        "primfit {args:?} wrote or removed files"
+    );
 }
 
 fn file_names(dir: &Path) -> BTreeSet<String> {
@@ -71,12 +88,20 @@ fn write_scene(path: &Path) {
     );
     for i in 0..16 {
         for j in 0..16 {
-            text += &format!("{} {} 0\n", 0.0625 + 0.125 * f64::from(i), 0.0625 + 0.125 * f64::from(j));
+            text += &format!(
+                "{} {} 0\n",
+                0.0625 + 0.125 * f64::from(i),
+                0.0625 + 0.125 * f64::from(j)
+            );
         }
     }
     for j in 0..16 {
         for k in 0..8 {
-            text += &format!("0 {} {}\n", 0.0625 + 0.125 * f64::from(j), 0.0625 + 0.125 * f64::from(k));
+            text += &format!(
+                "0 {} {}\n",
+                0.0625 + 0.125 * f64::from(j),
+                0.0625 + 0.125 * f64::from(k)
+            );
         }
     }
     fs::write(path, text).expect("write scene");
@@ -108,11 +133,15 @@ fn glb_json(path: &Path) -> Value {
 fn fit_writes_the_mesh_in_the_format_of_its_extension() {
     let dir = temp_dir("formats");
     write_scene(&dir.join("scene.ply"));
-    fit(&dir, &["-o", "result.json", "--mesh", "fitted.ply", "--ascii"]);
+    fit(
+        &dir,
+        &["-o", "result.json", "--mesh", "fitted.ply", "--ascii"],
+    );
     fit(&dir, &["--mesh", "fitted.obj"]);
     fit(&dir, &["--mesh", "fitted.GLB"]);
-    let result: Value = serde_json::from_str(&fs::read_to_string(dir.join("result.json")).expect("read"))
-        .expect("json");
+    let result: Value =
+        serde_json::from_str(&fs::read_to_string(dir.join("result.json")).expect("read"))
+            .expect("json");
     let prims = result["primitives"].as_array().expect("primitives");
     assert!(!prims.is_empty());
     let ply = fs::read_to_string(dir.join("fitted.ply")).expect("read ply");
@@ -125,15 +154,29 @@ fn fit_writes_the_mesh_in_the_format_of_its_extension() {
     let (vertices, faces) = (count("element vertex"), count("element face"));
     let obj = fs::read_to_string(dir.join("fitted.obj")).expect("read obj");
     let lines = |p: &str| obj.lines().filter(|l| l.starts_with(p)).count();
-    assert_eq!((lines("o "), lines("v "), lines("f ")), (prims.len(), vertices, faces));
+    assert_eq!(
+        (lines("o "), lines("v "), lines("f ")),
+        (prims.len(), vertices, faces)
+    );
     let gltf = glb_json(&dir.join("fitted.GLB"));
     let nodes = gltf["nodes"].as_array().expect("nodes");
-    assert_eq!(nodes.len(), prims.len() + 1, "a node per primitive under a root");
+    assert_eq!(
+        nodes.len(),
+        prims.len() + 1,
+        "a node per primitive under a root"
+    );
     let accessors = gltf["accessors"].as_array().expect("accessors");
     let sum = |kind: &str| -> u64 {
-        accessors.iter().filter(|a| a["type"] == kind).map(|a| a["count"].as_u64().expect("count")).sum()
+        accessors
+            .iter()
+            .filter(|a| a["type"] == kind)
+            .map(|a| a["count"].as_u64().expect("count"))
+            .sum()
     };
-    assert_eq!((sum("VEC3"), sum("SCALAR")), (vertices as u64, 3 * faces as u64));
+    assert_eq!(
+        (sum("VEC3"), sum("SCALAR")),
+        (vertices as u64, 3 * faces as u64)
+    );
     for (k, prim) in prims.iter().enumerate() {
         assert_eq!(nodes[k]["extras"]["type"], prim["type"]);
         assert_eq!(nodes[k]["extras"]["existence"], prim["existence"]);
@@ -182,7 +225,18 @@ fn decode_png(path: &Path) -> (u32, u32, Vec<u8>) {
 #[test]
 fn render_draws_a_png_of_the_size_asked_that_is_not_blank() {
     let dir = scene_and_results("render");
-    let stdout = ok(&dir, &["render", "scene.ply", "result.json", "-o", "fit.png", "--size", "320x240"]);
+    let stdout = ok(
+        &dir,
+        &[
+            "render",
+            "scene.ply",
+            "result.json",
+            "-o",
+            "fit.png",
+            "--size",
+            "320x240",
+        ],
+    );
     assert!(stdout.contains("fit.png"), "{stdout}");
     let (w, h, rgb) = decode_png(&dir.join("fit.png"));
     assert_eq!((w, h), (320, 240));
@@ -192,7 +246,17 @@ fn render_draws_a_png_of_the_size_asked_that_is_not_blank() {
     let colours: BTreeSet<&[u8]> = rgb.chunks(3).collect();
     assert!(colours.len() > 20, "shaded surfaces and coloured points");
     // A view from straight above, a non-fit result, a fixed scale.
-    let args = ["render", "scene.ply", "truth.json", "-o", "top.png", "--view", "-30,90", "--scale", "0.1"];
+    let args = [
+        "render",
+        "scene.ply",
+        "truth.json",
+        "-o",
+        "top.png",
+        "--view",
+        "-30,90",
+        "--scale",
+        "0.1",
+    ];
     ok(&dir, &args);
     assert_eq!(decode_png(&dir.join("top.png")).0, 1200);
 }
@@ -201,16 +265,36 @@ fn render_draws_a_png_of_the_size_asked_that_is_not_blank() {
 fn render_and_view_refuse_bad_input_and_write_nothing() {
     let dir = scene_and_results("render-bad");
     fs::write(dir.join("broken.json"), "{\"primitives\": [").expect("write");
-    fs::write(dir.join("badprim.json"), "{\"primitives\": [{\"type\": \"cube\"}]}").expect("write");
+    fs::write(
+        dir.join("badprim.json"),
+        "{\"primitives\": [{\"type\": \"cube\"}]}",
+    )
+    .expect("write");
     let render = |extra: &[&'static str]| {
         let mut a = vec!["render", "scene.ply", "result.json", "-o", "out.png"];
         a.extend(extra.iter().copied());
         a
     };
-    fails(&dir, &["render", "scene.ply", "missing.json", "-o", "out.png"], "missing.json");
-    fails(&dir, &["render", "scene.ply", "broken.json", "-o", "out.png"], "broken.json");
-    fails(&dir, &["render", "scene.ply", "badprim.json", "-o", "out.png"], "badprim.json");
-    fails(&dir, &["render", "nothere.ply", "result.json", "-o", "out.png"], "nothere.ply");
+    fails(
+        &dir,
+        &["render", "scene.ply", "missing.json", "-o", "out.png"],
+        "missing.json",
+    );
+    fails(
+        &dir,
+        &["render", "scene.ply", "broken.json", "-o", "out.png"],
+        "broken.json",
+    );
+    fails(
+        &dir,
+        &["render", "scene.ply", "badprim.json", "-o", "out.png"],
+        "badprim.json",
+    );
+    fails(
+        &dir,
+        &["render", "nothere.ply", "result.json", "-o", "out.png"],
+        "nothere.ply",
+    );
     fails(&dir, &render(&["--view", "abc"]), "--view");
     fails(&dir, &render(&["--view", "10,95"]), "--view");
     fails(&dir, &render(&["--view", "10"]), "--view");
@@ -218,13 +302,63 @@ fn render_and_view_refuse_bad_input_and_write_nothing() {
     fails(&dir, &render(&["--size", "8x8"]), "--size");
     fails(&dir, &render(&["--size", "100000x10"]), "--size");
     fails(&dir, &render(&["--scale", "-1"]), "--scale");
-    fails(&dir, &["render", "scene.ply", "result.json", "-o", "nowhere/out.png"], "nowhere");
-    fails(&dir, &["render", "scene.ply", "result.json", "-o", "scene.ply"], "scene.ply");
-    fails(&dir, &["view", "scene.ply", "missing.json", "-o", "out.html"], "missing.json");
-    fails(&dir, &["view", "scene.ply", "broken.json", "-o", "out.html"], "broken.json");
-    fails(&dir, &["view", "scene.ply", "result.json", "-o", "out.html", "--max-points", "0"], "--max-points");
-    fails(&dir, &["view", "scene.ply", "result.json", "-o", "out.html", "--scale", "0"], "--scale");
-    fails(&dir, &["view", "scene.ply", "result.json", "-o", "nowhere/out.html"], "nowhere");
+    fails(
+        &dir,
+        &[
+            "render",
+            "scene.ply",
+            "result.json",
+            "-o",
+            "nowhere/out.png",
+        ],
+        "nowhere",
+    );
+    fails(
+        &dir,
+        &["render", "scene.ply", "result.json", "-o", "scene.ply"],
+        "scene.ply",
+    );
+    fails(
+        &dir,
+        &["view", "scene.ply", "missing.json", "-o", "out.html"],
+        "missing.json",
+    );
+    fails(
+        &dir,
+        &["view", "scene.ply", "broken.json", "-o", "out.html"],
+        "broken.json",
+    );
+    fails(
+        &dir,
+        &[
+            "view",
+            "scene.ply",
+            "result.json",
+            "-o",
+            "out.html",
+            "--max-points",
+            "0",
+        ],
+        "--max-points",
+    );
+    fails(
+        &dir,
+        &[
+            "view",
+            "scene.ply",
+            "result.json",
+            "-o",
+            "out.html",
+            "--scale",
+            "0",
+        ],
+        "--scale",
+    );
+    fails(
+        &dir,
+        &["view", "scene.ply", "result.json", "-o", "nowhere/out.html"],
+        "nowhere",
+    );
 }
 
 /// The viewer page of the scene and its fit, written in `dir`.
@@ -239,8 +373,14 @@ fn write_page(dir: &Path, extra: &[&str]) -> String {
 fn view_writes_one_self_contained_page() {
     let dir = scene_and_results("view");
     let html = write_page(&dir, &["--max-points", "100"]);
-    assert!(!html.contains("http://") && !html.contains("https://"), "no network");
-    assert!(!html.contains("<script src") && !html.contains("<link"), "nothing external");
+    assert!(
+        !html.contains("http://") && !html.contains("https://"),
+        "no network"
+    );
+    assert!(
+        !html.contains("<script src") && !html.contains("<link"),
+        "nothing external"
+    );
     let start = html.find("application/json\">").expect("data") + 18;
     let end = start + html[start..].find("</script>").expect("end");
     let data: Value = serde_json::from_str(&html[start..end]).expect("data json");
@@ -251,20 +391,25 @@ fn view_writes_one_self_contained_page() {
 
 /// The Chromium binary, if installed.
 fn chromium() -> Option<PathBuf> {
-    ["chromium", "chromium-browser", "google-chrome"].iter().find_map(|name| {
-        std::env::var_os("PATH")?
-            .to_str()?
-            .split(':')
-            .map(|d| Path::new(d).join(name))
-            .find(|p| p.is_file())
-    })
+    ["chromium", "chromium-browser", "google-chrome"]
+        .iter()
+        .find_map(|name| {
+            std::env::var_os("PATH")?
+                .to_str()?
+                .split(':')
+                .map(|d| Path::new(d).join(name))
+                .find(|p| p.is_file())
+        })
 }
 
 #[test]
 fn view_page_renders_in_headless_chromium_without_errors() {
     let Some(browser) = chromium() else {
         let note = "chromium is not installed (Debian: apt-get install -y chromium)";
-        assert!(std::env::var("PRIMFIT_REQUIRE_ALL").as_deref() != Ok("1"), "{note}; PRIMFIT_REQUIRE_ALL=1");
+        assert!(
+            std::env::var("PRIMFIT_REQUIRE_ALL").as_deref() != Ok("1"),
+            "{note}; PRIMFIT_REQUIRE_ALL=1"
+        );
         eprintln!("skipped: {note}");
         return;
     };
@@ -289,8 +434,15 @@ fn view_page_renders_in_headless_chromium_without_errors() {
         .expect("run chromium");
     let dom = String::from_utf8_lossy(&out.stdout);
     let log = String::from_utf8_lossy(&out.stderr);
-    assert!(dom.contains("data-status=\"ok\""), "the page did not report ok:\n{dom:.3000}\n{log}");
-    let status = dom.split("id=\"status\">").nth(1).and_then(|s| s.split('<').next()).unwrap_or("");
+    assert!(
+        dom.contains("data-status=\"ok\""),
+        "the page did not report ok:\n{dom:.3000}\n{log}"
+    );
+    let status = dom
+        .split("id=\"status\">")
+        .nth(1)
+        .and_then(|s| s.split('<').next())
+        .unwrap_or("");
     let painted: usize = status
         .split(", ")
         .find_map(|p| p.strip_suffix(" pixels painted"))
@@ -301,5 +453,9 @@ fn view_page_renders_in_headless_chromium_without_errors() {
         .lines()
         .filter(|l| l.contains(":CONSOLE") && (l.contains("Uncaught") || l.contains("rror")))
         .collect();
-    assert!(console_errors.is_empty(), "console errors:\n{}", console_errors.join("\n"));
+    assert!(
+        console_errors.is_empty(),
+        "console errors:\n{}",
+        console_errors.join("\n")
+    );
 }

@@ -3,8 +3,8 @@
 use std::path::PathBuf;
 
 use numpy::PyReadonlyArray2;
-use primfit_core::render::{self, RenderOptions, View};
 use primfit_core::Result;
+use primfit_core::render::{self, RenderOptions, View};
 use pyo3::prelude::*;
 
 use crate::convert::{self, ToPyResult};

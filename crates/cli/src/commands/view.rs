@@ -35,17 +35,23 @@ pub fn run(args: ViewArgs, out: &Output) -> Result<()> {
     check_output(&args.output, &[&args.scene, &args.result])?;
     let cloud = io::read_cloud(&args.scene)?;
     let (primitives, existence) = read_model(&args.result)?;
-    let title = args
-        .scene
-        .file_name()
-        .map_or_else(|| args.scene.display().to_string(), |n| n.to_string_lossy().into_owned());
+    let title = args.scene.file_name().map_or_else(
+        || args.scene.display().to_string(),
+        |n| n.to_string_lossy().into_owned(),
+    );
     let options = HtmlOptions {
         title,
         max_points: args.max_points,
         scale: args.scale,
     };
-    let summary = write_html(&args.output, &cloud, &primitives, existence.as_deref(), &options)
-        .with_context(|| format!("writing {}", args.output.display()))?;
+    let summary = write_html(
+        &args.output,
+        &cloud,
+        &primitives,
+        existence.as_deref(),
+        &options,
+    )
+    .with_context(|| format!("writing {}", args.output.display()))?;
     if !out.quiet {
         println!(
             "wrote {} ({:.1} MB): {} of {} points, {} primitives",

@@ -40,13 +40,8 @@ impl FromStr for View {
             .collect::<std::result::Result<_, _>>()
             .map_err(|_| bad())?;
         match parts[..] {
-            [azimuth, elevation]
-                if azimuth.is_finite() && (-90.0..=90.0).contains(&elevation) =>
-            {
-                Ok(View {
-                    azimuth,
-                    elevation,
-                })
+            [azimuth, elevation] if azimuth.is_finite() && (-90.0..=90.0).contains(&elevation) => {
+                Ok(View { azimuth, elevation })
             }
             _ => Err(bad()),
         }
@@ -75,11 +70,13 @@ impl OrbitFrame {
         }
     }
 
-    /// A frame from the cloud's shape: up along the principal axis of least spread
-    /// (signed so that the points' third moment along it is positive, i.e. objects
-    /// standing on a main surface are above it; +z-ward when that is unclear), front
-    /// toward the scene origin (the sensor of a camera-frame scan) or, when the origin
-    /// is at the centroid, along the middle principal axis. Looks at the centroid.
+    /// A frame from the cloud's shape: up along the principal axis of least spread,
+    /// signed toward the scene origin when that is the sensor of a camera-frame scan
+    /// (outside the points, within 100 spreads of their centroid and at least 6° off
+    /// their main plane), else so that the points' third moment along it is positive
+    /// (objects standing on a main surface are above it), else toward +z. Front: toward
+    /// the scene origin across `up` or, when it is at the centroid, the middle principal
+    /// axis. Looks at the centroid.
     pub fn principal(points: &[Point3<f64>]) -> OrbitFrame {
         let n = points.len().max(1) as f64;
         let centroid = Point3::from(points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / n);
@@ -95,12 +92,18 @@ impl OrbitFrame {
         order.sort_by(|&a, &b| eigen.eigenvalues[a].total_cmp(&eigen.eigenvalues[b]));
         let mut up: Vector3<f64> = eigen.eigenvectors.column(order[0]).into();
         let sigma = eigen.eigenvalues[order[0]].max(0.0).sqrt();
+        let spread = eigen.eigenvalues[order[2]].max(0.0).sqrt();
+        let to_origin = -centroid.coords;
+        let distance = to_origin.norm();
+        let sensor = to_origin.dot(&up) / distance;
         let skew = points
             .iter()
             .map(|p| (p - centroid).dot(&up).powi(3))
             .sum::<f64>()
             / n;
-        let flip = if skew.abs() > 0.1 * sigma.powi(3) {
+        let flip = if distance > spread && distance < 100.0 * spread && sensor.abs() > 0.1 {
+            sensor < 0.0
+        } else if skew.abs() > 0.1 * sigma.powi(3) {
             skew < 0.0
         } else {
             up.z < 0.0
@@ -108,9 +111,7 @@ impl OrbitFrame {
         if flip {
             up = -up;
         }
-        let to_origin = -centroid.coords;
         let horizontal = to_origin - up * up.dot(&to_origin);
-        let spread = eigen.eigenvalues[order[2]].max(0.0).sqrt();
         let front = if horizontal.norm() > 1e-6 * spread.max(f64::MIN_POSITIVE) {
             horizontal.normalize()
         } else {
@@ -254,7 +255,11 @@ mod tests {
         let mut points = Vec::new();
         for i in 0..40 {
             for k in 0..20 {
-                points.push(Point3::new(f64::from(i) / 20.0 - 1.0, 1.0, f64::from(k) / 20.0 + 2.0));
+                points.push(Point3::new(
+                    f64::from(i) / 20.0 - 1.0,
+                    1.0,
+                    f64::from(k) / 20.0 + 2.0,
+                ));
             }
         }
         for i in 0..200 {
@@ -264,5 +269,9 @@ mod tests {
         let frame = OrbitFrame::principal(&points);
         assert!(frame.up.y < -0.99, "{}", frame.up);
         assert!(frame.front.z < -0.99, "{}", frame.front);
+        // Centred on the origin, there is no sensor to go by: the post stands up.
+        let centroid = points.iter().map(|p| p.coords).sum::<Vector3<f64>>() / points.len() as f64;
+        let centred: Vec<Point3<f64>> = points.iter().map(|p| p - centroid).collect();
+        assert!(OrbitFrame::principal(&centred).up.y < -0.99);
     }
 }

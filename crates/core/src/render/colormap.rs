@@ -41,9 +41,17 @@ pub fn distances_and_scale(
 ) -> Result<(Vec<f64>, f64)> {
     let distances = point_to_model_distances(points, primitives)?;
     let scale = scale.unwrap_or_else(|| {
-        let finite: Vec<f64> = distances.iter().copied().filter(|d| d.is_finite()).collect();
+        let finite: Vec<f64> = distances
+            .iter()
+            .copied()
+            .filter(|d| d.is_finite())
+            .collect();
         let p95 = percentile(&finite, 0.95);
-        if p95.is_finite() && p95 > 0.0 { p95 } else { 1.0 }
+        if p95.is_finite() && p95 > 0.0 {
+            p95
+        } else {
+            1.0
+        }
     });
     Ok((distances, scale))
 }

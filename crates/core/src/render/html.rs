@@ -128,7 +128,10 @@ pub fn write_html(
         scale: page.1,
         bytes: page.0.len(),
     };
-    write_atomic(path, |w| w.write_all(page.0.as_bytes()).map_err(|e| Error::io(path, e)))?;
+    write_atomic(path, |w| {
+        w.write_all(page.0.as_bytes())
+            .map_err(|e| Error::io(path, e))
+    })?;
     Ok(summary)
 }
 
@@ -150,7 +153,11 @@ fn page(
         .iter()
         .map(|d| {
             let t = d / scale;
-            if t.is_nan() { 255 } else { (t.clamp(0.0, 1.0) * 255.0).round() as u8 }
+            if t.is_nan() {
+                255
+            } else {
+                (t.clamp(0.0, 1.0) * 255.0).round() as u8
+            }
         })
         .collect();
     let rgb = cloud.colors.as_ref().map(|c| {
@@ -162,7 +169,12 @@ fn page(
         .enumerate()
         .map(|(k, p)| {
             let mesh = p.triangulate();
-            let faces: Vec<u8> = mesh.faces.iter().flatten().flat_map(|i| i.to_le_bytes()).collect();
+            let faces: Vec<u8> = mesh
+                .faces
+                .iter()
+                .flatten()
+                .flat_map(|i| i.to_le_bytes())
+                .collect();
             json!({
                 "name": format!("primitive_{k}_{}", p.shape.kind().name()),
                 "type": p.shape.kind().name(),
@@ -197,9 +209,11 @@ fn page(
     });
     // `<` only occurs inside JSON strings, where `\u003c` means the same: no `</script>`.
     let data = data.to_string().replace('<', "\\u003c");
-    let html = TEMPLATE
-        .replacen("__PRIMFIT_DATA__", &data, 1)
-        .replacen("__PRIMFIT_VIEWER_JS__", VIEWER_JS, 1);
+    let html = TEMPLATE.replacen("__PRIMFIT_DATA__", &data, 1).replacen(
+        "__PRIMFIT_VIEWER_JS__",
+        VIEWER_JS,
+        1,
+    );
     Ok((html, scale))
 }
 
@@ -221,7 +235,11 @@ mod tests {
             scale: None,
         };
         let (html, _) = page(&cloud, &[square], Some(&[0.5]), &options).expect("page");
-        assert_eq!(html.matches("</script>").count(), 2, "the data and the viewer");
+        assert_eq!(
+            html.matches("</script>").count(),
+            2,
+            "the data and the viewer"
+        );
         let start = html.find("application/json\">").expect("data") + 18;
         let end = start + html[start..].find("</script>").expect("end");
         let data: Value = serde_json::from_str(&html[start..end]).expect("json");
@@ -229,7 +247,9 @@ mod tests {
         assert_eq!(data["points"]["total"], 1000);
         assert_eq!(data["title"], "</script><b>x");
         assert_eq!(data["primitives"][0]["existence"], 0.5);
-        let xyz = STANDARD.decode(data["points"]["xyz"].as_str().expect("b64")).expect("b64");
+        let xyz = STANDARD
+            .decode(data["points"]["xyz"].as_str().expect("b64"))
+            .expect("b64");
         assert_eq!(xyz.len(), 100 * 12);
         assert!(!html.contains("__PRIMFIT"));
     }

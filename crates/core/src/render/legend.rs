@@ -79,7 +79,13 @@ pub fn colour_bar(canvas: &mut Canvas, top: f64) {
     text(canvas, "0", margin, text_y, s);
     let top_label = label(top);
     let width = (top_label.len() * 4 - 1) * s;
-    text(canvas, &top_label, (margin + bar_w).saturating_sub(width), text_y, s);
+    text(
+        canvas,
+        &top_label,
+        (margin + bar_w).saturating_sub(width),
+        text_y,
+        s,
+    );
 }
 
 #[cfg(test)]

@@ -49,7 +49,11 @@ impl Canvas {
         for y in y0..y1 {
             for x in x0..x1 {
                 let p = [x as f64 + 0.5, y as f64 + 0.5, 0.0];
-                let (wa, wb, wc) = (edge(b, c, p) / area, edge(c, a, p) / area, edge(a, b, p) / area);
+                let (wa, wb, wc) = (
+                    edge(b, c, p) / area,
+                    edge(c, a, p) / area,
+                    edge(a, b, p) / area,
+                );
                 if wa >= 0.0 && wb >= 0.0 && wc >= 0.0 {
                     self.plot(x, y, wa * a[2] + wb * b[2] + wc * c[2], color);
                 }
@@ -65,8 +69,7 @@ impl Canvas {
         for dy in 0..size {
             for dx in 0..size {
                 let (x, y) = (x0 + dx as f64, y0 + dy as f64);
-                if x >= 0.0 && y >= 0.0 && (x as usize) < self.width && (y as usize) < self.height
-                {
+                if x >= 0.0 && y >= 0.0 && (x as usize) < self.width && (y as usize) < self.height {
                     self.plot(x as usize, y as usize, p[2], color);
                 }
             }

@@ -191,7 +191,11 @@ fn mesh_primitive(
             max[k] = max[k].max(v[k]);
         }
     }
-    let positions: Vec<u8> = local.iter().flatten().flat_map(|c| c.to_le_bytes()).collect();
+    let positions: Vec<u8> = local
+        .iter()
+        .flatten()
+        .flat_map(|c| c.to_le_bytes())
+        .collect();
     let indices: Vec<u8> = part
         .mesh
         .faces
@@ -204,7 +208,10 @@ fn mesh_primitive(
         bin,
         &positions,
         local.len(),
-        (json::accessor::Type::Vec3, json::accessor::ComponentType::F32),
+        (
+            json::accessor::Type::Vec3,
+            json::accessor::ComponentType::F32,
+        ),
         json::buffer::Target::ArrayBuffer,
         Some((min, max)),
     );
@@ -213,7 +220,10 @@ fn mesh_primitive(
         bin,
         &indices,
         3 * part.mesh.faces.len(),
-        (json::accessor::Type::Scalar, json::accessor::ComponentType::U32),
+        (
+            json::accessor::Type::Scalar,
+            json::accessor::ComponentType::U32,
+        ),
         json::buffer::Target::ElementArrayBuffer,
         None,
     );
@@ -274,9 +284,9 @@ fn bounds_centre(points: &[Point3<f64>]) -> Point3<f64> {
     let Some(first) = points.first() else {
         return Point3::origin();
     };
-    let (lo, hi) = points.iter().fold((*first, *first), |(lo, hi), p| {
-        (lo.inf(p), hi.sup(p))
-    });
+    let (lo, hi) = points
+        .iter()
+        .fold((*first, *first), |(lo, hi), p| (lo.inf(p), hi.sup(p)));
     nalgebra::center(&lo, &hi)
 }
 

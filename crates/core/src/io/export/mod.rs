@@ -62,7 +62,9 @@ impl MeshFormat {
                 });
                 Err(Error::format(
                     path,
-                    format!("not a mesh format that is written: {found} (accepted: {MESH_FORMATS})"),
+                    format!(
+                        "not a mesh format that is written: {found} (accepted: {MESH_FORMATS})"
+                    ),
                 ))
             }
         }

@@ -90,7 +90,10 @@ fn glb_reads_back_with_the_gltf_crate() {
         let t = Vector3::from(node.transform().decomposed().0.map(f64::from)) + offset;
         let mesh = node.mesh().expect("a mesh");
         let primitive = mesh.primitives().next().expect("a primitive");
-        let color = primitive.material().pbr_metallic_roughness().base_color_factor();
+        let color = primitive
+            .material()
+            .pbr_metallic_roughness()
+            .base_color_factor();
         let expected = palette_color(k).map(|c| srgb_to_linear(f32::from(c) / 255.0));
         assert!((0..3).all(|i| (color[i] - expected[i]).abs() < 1e-6));
         let reader = primitive.reader(|_| Some(blob));
@@ -102,7 +105,10 @@ fn glb_reads_back_with_the_gltf_crate() {
         let indices: Vec<u32> = reader.read_indices().expect("indices").into_u32().collect();
         let ours = prim.triangulate();
         assert_eq!(positions.len(), ours.vertices.len());
-        assert_eq!(indices, ours.faces.iter().flatten().copied().collect::<Vec<_>>());
+        assert_eq!(
+            indices,
+            ours.faces.iter().flatten().copied().collect::<Vec<_>>()
+        );
         // Stored positions are f32 relative to the primitive's centre: within f32
         // rounding of the part (and of the f32 offset far from the origin).
         let tol = if k == 2 { far * 1e-7 } else { 1e-6 };
@@ -134,7 +140,10 @@ fn obj_reads_back_with_tobj_exactly() {
     let (models, _) = tobj::load_obj(&path, &options).expect("tobj reads it");
     assert_eq!(models.len(), prims.len());
     for (k, (model, prim)) in models.iter().zip(&prims).enumerate() {
-        assert_eq!(model.name, format!("primitive_{k}_{}", prim.shape.kind().name()));
+        assert_eq!(
+            model.name,
+            format!("primitive_{k}_{}", prim.shape.kind().name())
+        );
         let ours = prim.triangulate();
         let m = &model.mesh;
         assert_eq!(m.positions.len(), 3 * ours.vertices.len());
@@ -172,8 +181,7 @@ fn ply_is_the_fit_mesh_with_a_primitive_index_per_face() {
 fn an_empty_model_still_writes_valid_files() {
     let dir = Scratch::new("empty");
     for name in ["e.ply", "e.obj", "e.glb"] {
-        write_primitives_mesh(&dir.path(name), &[], Some(&[]), Encoding::default())
-            .expect("write");
+        write_primitives_mesh(&dir.path(name), &[], Some(&[]), Encoding::default()).expect("write");
     }
     let bytes = fs::read(dir.path("e.glb")).expect("read");
     let gltf = gltf::Gltf::from_slice(&bytes).expect("valid glb");
@@ -190,10 +198,18 @@ fn bad_requests_fail_before_writing_anything() {
             .expect_err(name)
             .to_string();
         assert!(err.contains(name), "{err}");
-        assert!(err.contains(".ply") && err.contains(".obj") && err.contains(".glb"), "{err}");
+        assert!(
+            err.contains(".ply") && err.contains(".obj") && err.contains(".glb"),
+            "{err}"
+        );
     }
-    let err = write_primitives_mesh(&dir.path("a.glb"), &prims, Some(&[0.5]), Encoding::default())
-        .expect_err("mismatch");
+    let err = write_primitives_mesh(
+        &dir.path("a.glb"),
+        &prims,
+        Some(&[0.5]),
+        Encoding::default(),
+    )
+    .expect_err("mismatch");
     assert!(matches!(err, Error::Mismatch { .. }), "{err}");
     for name in ["a.obj", "a.glb"] {
         let target = dir.path("missing-folder").join(name);
@@ -215,7 +231,10 @@ fn an_existing_file_is_replaced_whole() {
     assert_eq!(&bytes[..4], b"glTF");
     assert_eq!(dir.files(), ["fitted.glb"]);
     let gltf = gltf::Gltf::from_slice(&bytes).expect("valid glb");
-    let node = gltf.nodes().find(|n| n.mesh().is_some()).expect("a mesh node");
+    let node = gltf
+        .nodes()
+        .find(|n| n.mesh().is_some())
+        .expect("a mesh node");
     let extras: serde_json::Value =
         serde_json::from_str(node.extras().as_ref().expect("extras").get()).expect("json");
     assert!(extras["existence"].is_null());
