@@ -4,7 +4,7 @@ use std::path::PathBuf;
 
 use numpy::PyReadonlyArray2;
 use primfit_core::Result;
-use primfit_core::render::{self, RenderOptions, View};
+use primfit_core::render::{RenderOptions, View, render as draw};
 use pyo3::prelude::*;
 
 use crate::convert::{self, ToPyResult};
@@ -42,7 +42,7 @@ pub fn render(
     };
     pool::detached(py, || -> Result<f64> {
         let (prims, _) = parse_primitives(&list)?;
-        let picture = render::render(&points, &prims, &options)?;
+        let picture = draw(&points, &prims, &options)?;
         picture.write_png(&path)?;
         Ok(picture.scale)
     })?

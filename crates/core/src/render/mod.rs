@@ -214,7 +214,7 @@ fn draw_primitives(canvas: &mut Canvas, projection: &Projection, primitives: &[P
             let [a, b, cc] = f.map(|i| mesh.vertices[i as usize]);
             let normal = (b - a).cross(&(cc - a));
             let n = normal.norm();
-            if !(n > 0.0) {
+            if n <= 0.0 || !n.is_finite() {
                 continue;
             }
             let shade = 0.3 + 0.7 * (normal / n).dot(&light).abs();
