@@ -58,7 +58,8 @@ def read_glb(path):
     def array(index, dtype, width):
         acc = doc["accessors"][index]
         view = doc["bufferViews"][acc["bufferView"]]
-        raw = np.frombuffer(blob, dtype=dtype, count=acc["count"] * width, offset=view["byteOffset"])
+        per = {"SCALAR": 1, "VEC3": 3}[acc["type"]]
+        raw = np.frombuffer(blob, dtype=dtype, count=acc["count"] * per, offset=view["byteOffset"])
         return raw.reshape(-1, width)
 
     root = doc["nodes"][doc["scenes"][doc["scene"]]["nodes"][0]]

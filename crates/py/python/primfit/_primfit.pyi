@@ -22,6 +22,7 @@ __all__ = [
     "read_mesh",
     "read_ply",
     "read_result",
+    "render",
     "synth_hallway",
     "synth_nine_cylinders",
     "synth_pipe",
