@@ -58,6 +58,12 @@ const FLAGS: &[(&str, &str)] = &[
     ("inlier_distance", "--inlier-distance"),
     // eval
     ("coverage_tau", "--tau"),
+    // render, view
+    ("view", "--view"),
+    ("image_width", "--size"),
+    ("image_height", "--size"),
+    ("color_scale", "--scale"),
+    ("max_points", "--max-points"),
 ];
 
 /// The flag that sets the library option `name`, or `name` itself when none does.

@@ -41,6 +41,13 @@ enum Command {
     Eval(commands::eval::EvalArgs),
     /// Find the pose(s) of a mesh in a scan (particle filter + ICP) and write result JSON.
     Register(commands::register::RegisterArgs),
+    /// Draw a scan and a result as a PNG: points coloured by distance to the model,
+    /// primitives shaded.
+    #[command(allow_negative_numbers = true)]
+    Render(commands::render::RenderArgs),
+    /// Write one self-contained HTML page to orbit a scan and a result in a browser.
+    #[command(allow_negative_numbers = true)]
+    View(commands::view::ViewArgs),
 }
 
 fn main() -> ExitCode {
@@ -62,6 +69,8 @@ fn main() -> ExitCode {
         Command::Synth(a) => commands::synth::run(a, &out),
         Command::Eval(a) => commands::eval::run(a, &out),
         Command::Register(a) => commands::register::run(a, &out),
+        Command::Render(a) => commands::render::run(a, &out),
+        Command::View(a) => commands::view::run(a, &out),
     };
     match result {
         Ok(()) => ExitCode::SUCCESS,

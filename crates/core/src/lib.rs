@@ -26,6 +26,7 @@
 //! | [`synth`] | synthetic scenes with ground truth |
 //! | [`register`] | particle-filter registration of a mesh, the chamfer as measurement |
 //! | [`metrics`] | the measures of DESIGN §4 |
+//! | [`render`] | pictures of a fit: a PNG and an interactive HTML page |
 //! | [`io`] | PLY and JSON |
 //! | [`error`], [`check`] | the typed error and the range checks that build it |
 //! | [`limit`] | a count that may be unlimited (`inf`) |
@@ -126,6 +127,7 @@ pub mod progress;
 pub mod ray;
 pub mod refine;
 pub mod register;
+pub mod render;
 pub mod solve;
 pub mod spatial;
 pub mod surface;

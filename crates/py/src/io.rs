@@ -1,13 +1,12 @@
 //! Files: clouds in (every format `primfit_core::io::read_cloud` reads: PLY, PCD,
 //! LAS/LAZ, E57, XYZ/PTS/CSV text) and out (PLY), meshes in, fitted primitives out as
-//! one mesh.
+//! one mesh (PLY, OBJ or glTF binary).
 
 use std::path::PathBuf;
 
 use numpy::ndarray::{Array2, ArrayView2, Axis};
 use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use primfit_core::atlas::MeshShape;
-use primfit_core::fit::primitives_mesh;
 use primfit_core::io::{self, Encoding};
 use primfit_core::na::Vector3;
 use primfit_core::{PointCloud, Primitive, Result};
@@ -164,8 +163,39 @@ pub fn read_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Mesh<'py>> {
     Ok((points_array(py, &mesh.vertices), faces.into_pyarray(py)))
 }
 
-/// Writes primitives (a JSON list in the `result.json` format) as one triangle-mesh PLY
-/// with a per-face `primitive` index. Mesh primitives are read from their `source` file.
+/// Primitives (a JSON list in the `result.json` format) and their `existence` when
+/// every entry has one. Mesh primitives are read from their `source` file, so call this
+/// with the GIL released.
+pub fn parse_primitives(list: &[serde_json::Value]) -> Result<(Vec<Primitive>, Option<Vec<f64>>)> {
+    let load = |source: &str| -> Result<MeshShape> {
+        MeshShape::new(source, io::read_mesh(std::path::Path::new(source))?)
+    };
+    let prims = list
+        .iter()
+        .enumerate()
+        .map(|(k, v)| Primitive::from_json(v, &load).map_err(|e| e.in_item("primitive", k)))
+        .collect::<Result<Vec<_>>>()?;
+    let existence = list
+        .iter()
+        .map(|v| v.get("existence").and_then(serde_json::Value::as_f64))
+        .collect();
+    Ok((prims, existence))
+}
+
+/// A JSON list of primitives as text, parsed (not yet checked as primitives).
+pub fn primitive_list(primitives_json: &str) -> PyResult<Vec<serde_json::Value>> {
+    let doc: serde_json::Value = serde_json::from_str(primitives_json)
+        .map_err(|e| PyValueError::new_err(format!("primitives are not valid JSON: {e}")))?;
+    match doc {
+        serde_json::Value::Array(list) => Ok(list),
+        _ => Err(PyValueError::new_err("primitives must be a list")),
+    }
+}
+
+/// Writes primitives (a JSON list in the `result.json` format) as one triangle mesh in
+/// the format of the path's extension: PLY (per-face `primitive` index), OBJ or glTF
+/// binary (`.glb`, existence in each node's extras). Mesh primitives are read from their
+/// `source` file.
 #[pyfunction]
 #[pyo3(signature = (path, primitives_json, *, ascii=false))]
 pub fn write_mesh(
@@ -174,22 +204,10 @@ pub fn write_mesh(
     primitives_json: &str,
     ascii: bool,
 ) -> PyResult<()> {
-    let doc: serde_json::Value = serde_json::from_str(primitives_json)
-        .map_err(|e| PyValueError::new_err(format!("primitives are not valid JSON: {e}")))?;
-    let list = doc
-        .as_array()
-        .ok_or_else(|| PyValueError::new_err("primitives must be a list"))?;
+    let list = primitive_list(primitives_json)?;
     pool::detached(py, || -> Result<()> {
-        let load = |source: &str| -> Result<MeshShape> {
-            MeshShape::new(source, io::read_mesh(std::path::Path::new(source))?)
-        };
-        let prims = list
-            .iter()
-            .enumerate()
-            .map(|(k, v)| Primitive::from_json(v, &load).map_err(|e| e.in_item("primitive", k)))
-            .collect::<Result<Vec<_>>>()?;
-        let (mesh, owner) = primitives_mesh(&prims);
-        io::write_mesh(&path, &mesh, Some(&owner), encoding(ascii))
+        let (prims, existence) = parse_primitives(&list)?;
+        io::write_primitives_mesh(&path, &prims, existence.as_deref(), encoding(ascii))
     })?
     .py()
 }

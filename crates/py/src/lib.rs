@@ -11,6 +11,7 @@ mod convert;
 mod fit;
 mod io;
 mod pool;
+mod render;
 mod synth;
 
 use pyo3::prelude::*;
@@ -24,6 +25,8 @@ mod _primfit {
     use super::fit::{PyFitOptions, candidates, fit, fit_problem, read_result};
     #[pymodule_export]
     use super::io::{read_mesh, read_ply, write_mesh, write_ply};
+    #[pymodule_export]
+    use super::render::render;
     #[pymodule_export]
     use super::synth::{
         synth_hallway, synth_nine_cylinders, synth_pipe, synth_registration, synth_six_in_a_row,

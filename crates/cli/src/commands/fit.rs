@@ -38,10 +38,12 @@ pub struct FitArgs {
     /// Write the result JSON here.
     #[arg(short, long, value_name = "result.json")]
     pub output: Option<PathBuf>,
-    /// Write all fitted primitives as one triangle-mesh PLY (per-face `primitive` index).
-    #[arg(long, value_name = "fitted.ply")]
+    /// Write all fitted primitives as one triangle mesh, in the format of the extension:
+    /// `.ply` (per-face `primitive` index), `.obj` (one object per primitive) or `.glb`
+    /// (glTF binary: one node per primitive, type and existence in its extras).
+    #[arg(long, value_name = "fitted.ply|obj|glb")]
     pub mesh: Option<PathBuf>,
-    /// Write PLY output as ascii instead of binary little-endian.
+    /// Write a PLY mesh as ascii instead of binary little-endian.
     #[arg(long)]
     pub ascii: bool,
     /// Primitive types: `auto` (the compact model: planes with outlines, cylinders and
@@ -225,6 +227,9 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
     for path in &outputs {
         check_output(path, &inputs)?;
     }
+    if let Some(path) = &args.mesh {
+        io::MeshFormat::from_path(path)?;
+    }
     if let [a, b] = outputs[..]
         && a == b
     {
@@ -277,8 +282,7 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
         None => None,
     };
     if let Some(path) = &args.mesh {
-        let (mesh, owner) = result.mesh();
-        io::write_mesh(path, &mesh, Some(&owner), encoding)?;
+        io::write_primitives_mesh(path, &result.primitives, Some(&result.existence), encoding)?;
     }
     if let Some(json) = staged {
         json.commit()?;

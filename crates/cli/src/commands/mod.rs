@@ -7,9 +7,12 @@ use primfit_core::Limit;
 
 pub mod eval;
 pub mod fit;
+pub mod model;
 pub mod register;
+pub mod render;
 pub mod sizes;
 pub mod synth;
+pub mod view;
 
 /// How much to print.
 #[derive(Debug, Clone, Copy)]

@@ -73,11 +73,15 @@
 //! [`write_atomic`]: the data goes to a temporary file beside the target that is renamed
 //! over it only once complete, so a failed run never leaves a partial file or clobbers an
 //! existing one. [`write_json_atomic`] does the same for JSON values.
+//!
+//! [`write_primitives_mesh`] writes fitted primitives as PLY, OBJ or glTF binary
+//! (`.glb`), chosen by the path's extension ([`MeshFormat`]; see the `export` module).
 
 mod atomic;
 mod collect;
 mod detect;
 mod e57;
+mod export;
 pub mod json;
 mod las;
 mod palette;
@@ -94,6 +98,7 @@ use std::path::Path;
 
 pub use atomic::{StagedFile, stage, stage_json, write_atomic, write_json_atomic};
 pub use detect::{ACCEPTED_FORMATS, CloudFormat, PcdData, TextKind};
+pub use export::{MESH_FORMATS, MeshFormat, write_primitives_mesh};
 pub use palette::{PALETTE, palette_color};
 pub use ply::{read_mesh, read_mesh_report, write_cloud, write_mesh, write_mesh_colored};
 

@@ -45,6 +45,7 @@ __all__ = [
     "read_mesh",
     "read",
     "read_ply",
+    "render",
     "synth",
     "write_mesh",
     "write_ply",
@@ -469,6 +470,13 @@ def read_mesh(path: str | os.PathLike[str]) -> tuple[np.ndarray, np.ndarray]:
     return _primfit.read_mesh(os.fspath(path))
 
 
+def _primitive_list(primitives: FitResult | Sequence[dict[str, Any]]) -> str:
+    """Primitives as the JSON list the extension reads."""
+    if isinstance(primitives, FitResult):
+        primitives = primitives.primitives
+    return json.dumps(list(primitives))
+
+
 def write_mesh(
     path: str | os.PathLike[str],
     primitives: FitResult | Sequence[dict[str, Any]],
@@ -476,8 +484,46 @@ def write_mesh(
     ascii: bool = False,
 ) -> None:
     """Writes primitives (a :class:`FitResult` or dicts as in ``result.json``) as one
-    triangle-mesh PLY with a per-face ``primitive`` index, as ``primfit fit --mesh`` does.
+    triangle mesh, as ``primfit fit --mesh`` does, in the format of the path's extension:
+
+    - ``.ply``: per-face ``primitive`` index, palette vertex colours (``ascii`` or binary);
+    - ``.obj``: one object ``primitive_K_TYPE`` per primitive, vertex colours;
+    - ``.glb`` (glTF binary): one node and mesh per primitive with a palette material,
+      ``{"index", "type", "existence"}`` in the node's ``extras``.
+
+    Any other extension raises ``ValueError`` naming the path; nothing is written on error.
     """
-    if isinstance(primitives, FitResult):
-        primitives = primitives.primitives
-    _primfit.write_mesh(os.fspath(path), json.dumps(list(primitives)), ascii=ascii)
+    _primfit.write_mesh(os.fspath(path), _primitive_list(primitives), ascii=ascii)
+
+
+def render(
+    path: str | os.PathLike[str],
+    cloud: ArrayLike | Mapping[str, Any],
+    primitives: FitResult | Sequence[dict[str, Any]],
+    *,
+    size: tuple[int, int] = (1200, 900),
+    view: tuple[float, float] | None = None,
+    scale: float | None = None,
+) -> float:
+    """Draws ``cloud`` and the primitives as a PNG at ``path``, as ``primfit render``:
+    points coloured by their distance to the model (viridis, 0 to ``scale`` scene units;
+    default: the 95th percentile of the distances), primitives Lambert-shaded in their
+    palette colours, an orthographic view fitted to the points.
+
+    ``size`` is ``(width, height)`` in pixels (16 to 8192); ``view`` is
+    ``(azimuth, elevation)`` in degrees about the scene's +z axis (matplotlib's
+    ``azim, elev``; default: from above and in front of the cloud's principal axes).
+    ``cloud`` is a (J, 3) array or a dict as :func:`read_ply` returns. Returns the
+    distance at the top of the colour scale.
+    """
+    points, _ = _cloud(cloud)
+    width, height = size
+    return _primfit.render(
+        os.fspath(path),
+        points,
+        _primitive_list(primitives),
+        width=int(width),
+        height=int(height),
+        view=None if view is None else (float(view[0]), float(view[1])),
+        scale=None if scale is None else float(scale),
+    )

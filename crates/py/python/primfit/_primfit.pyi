@@ -22,6 +22,7 @@ __all__ = [
     "read_mesh",
     "read_ply",
     "read_result",
+    "render",
     "synth_hallway",
     "synth_nine_cylinders",
     "synth_pipe",
@@ -165,3 +166,13 @@ def write_ply(
 ) -> None: ...
 def read_mesh(path: str | os.PathLike[str]) -> tuple[_F64, _I64]: ...
 def write_mesh(path: str | os.PathLike[str], primitives_json: str, *, ascii: bool = False) -> None: ...
+def render(
+    path: str | os.PathLike[str],
+    cloud: _F64,
+    primitives_json: str,
+    *,
+    width: int = 1200,
+    height: int = 900,
+    view: tuple[float, float] | None = None,
+    scale: float | None = None,
+) -> float: ...
