@@ -78,7 +78,7 @@ mod atomic;
 mod collect;
 mod detect;
 mod e57;
-pub mod json;
+pub(crate) mod json;
 mod las;
 mod palette;
 mod pcd;
