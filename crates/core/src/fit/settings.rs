@@ -450,7 +450,8 @@ impl Settings {
         }
     }
 
-    /// Every setting as JSON (`result.json`'s `"settings"`; the schema is `fit/document.rs`).
+    /// Every setting as JSON (`result.json`'s `"settings"`; its schema is in
+    /// `fit/document.rs`).
     pub fn to_json(&self) -> Value {
         serde_json::to_value(SettingsDoc::new(self, None)).unwrap_or(Value::Null)
     }

@@ -3,12 +3,12 @@
 //!
 //! Every point is a ray from its sensor origin ([`Rays`], needs
 //! [`crate::PointCloud::sensors`]). The likelihood of a scene Φ is a sum over rays of
-//! eq. 4.10 in log space ([`ray_log_likelihood`], `likelihood.rs`); the candidates crossing each ray are found once
-//! with per-frame [`RayTree`]s and stored, with their per-crossing terms, in a
-//! [`RayTable`] (Algorithm 2); [`SceneState`] re-evaluates only the rays of flipped
-//! candidates (Algorithm 3); [`sample`] is the §4.2.2 sampler with the §4.2.1 prior
-//! ([`existence_prior`]); [`crate::fit::fit`] with [`crate::fit::MethodOptions::Mcmc`]
-//! is the pipeline behind `primfit fit --method mcmc`.
+//! eq. 4.10 in log space ([`ray_log_likelihood`], `likelihood.rs`); the candidates
+//! crossing each ray are found once with per-frame [`RayTree`]s and stored, with their
+//! per-crossing terms, in a [`RayTable`] (Algorithm 2); [`SceneState`] re-evaluates
+//! only the rays of flipped candidates (Algorithm 3); [`sample`] is the §4.2.2 sampler
+//! with the §4.2.1 prior ([`existence_prior`]); [`crate::fit::fit`] with
+//! [`crate::fit::MethodOptions::Mcmc`] is the pipeline behind `primfit fit --method mcmc`.
 //!
 //! Units: lengths in scene units (metres), log-likelihoods in nats, the noise rate in
 //! points per scene unit of ray.
