@@ -1,7 +1,6 @@
-//! The compact model of a scan (`--types auto`'s pipeline: `fit` with the default
-//! options) with its measures: counts by type, the largest planes, every cylinder
-//! (radius, axis angle to the largest plane's normal), point→model, model→point,
-//! coverage, and the time taken.
+//! The compact model of a scan (`--types auto`'s pipeline) with its measures: counts by
+//! type, the largest planes, every cylinder (radius, axis angle to the largest plane's
+//! normal), point→model, model→point, coverage, and the time taken.
 //!
 //! ```text
 //! cargo run --release -p primfit-core --example compact_scan -- SCAN.ply [--mesh OUT.ply]
@@ -10,10 +9,13 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
-use primfit_core::fit::{FitOptions, MethodSettings, fit, primitives_mesh};
+use primfit_core::PointIndex;
+use primfit_core::Silent;
+use primfit_core::compact::{CompactOptions, compact_model};
+use primfit_core::fit::primitives_mesh;
 use primfit_core::io::{Encoding, read_cloud, write_mesh};
 use primfit_core::metrics::{MetricsOptions, evaluate};
-use primfit_core::{Primitive, Shape, Silent};
+use primfit_core::{Primitive, Shape};
 
 /// Planes listed individually.
 const LISTED_PLANES: usize = 8;
@@ -34,29 +36,27 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     let path = path.ok_or("usage: compact_scan SCAN.ply [--mesh OUT.ply]")?;
     let cloud = read_cloud(&path)?;
     let start = Instant::now();
-    let model = fit(&cloud, &FitOptions::default(), &Silent)?;
+    let index = PointIndex::new(&cloud.points);
+    let model = compact_model(&cloud.points, &index, &CompactOptions::default(), &Silent)?;
     let seconds = start.elapsed().as_secs_f64();
-    let MethodSettings::Compact(compact) = &model.settings.method else {
-        return Err("the default fit is not the compact model".into());
-    };
     let prims = &model.primitives;
     let count = |k: &str| prims.iter().filter(|p| p.shape.kind().name() == k).count();
     println!(
         "{}: {} points; {} segments → {} proposed → {} primitives ({} planes, {} cylinders, {} spheres) in {seconds:.2} s (detect {:.2} s, existence {:.2} s)",
         path.display(),
         cloud.points.len(),
-        compact.segments,
-        compact.proposed,
+        model.detection.segments.len(),
+        model.proposed,
         prims.len(),
         count("plane"),
         count("cylinder"),
         count("sphere"),
-        model.stats.lattice_seconds,
-        model.stats.solve_seconds
+        model.detect_seconds,
+        model.existence_seconds
     );
     println!(
         "σ = {:.5}, spacing = {:.5}, cap = {:.5}",
-        model.settings.noise, model.settings.point_spacing, model.settings.cap
+        model.detection.model_noise, model.detection.spacing, model.cap
     );
     let mut planes: Vec<&Primitive> = prims
         .iter()

@@ -15,9 +15,9 @@
 //!
 //! The crate root re-exports what a user calls; the modules below group the rest of a
 //! coherent API each. Everything else is private: the local-surface PCA (`surface`), the
-//! lattice frame (`frame`; its [`fit::FrameChoice`] is a fit option), the compact model
-//! (`compact`, reached through [`fit()`] with the default types), the kd-trees (`spatial`;
-//! [`PointIndex`] is re-exported), and the small modules behind the root re-exports
+//! lattice frame (`frame`; its [`fit::FrameChoice`] is a fit option), the kd-trees
+//! (`spatial`; [`PointIndex`] is re-exported), and the small modules behind the root
+//! re-exports
 //! (`cloud`, `primitive`, `error`, `check`, `limit`, `progress`).
 //!
 //! | at the root | what it is |
@@ -42,6 +42,7 @@
 //! | [`solve`] | projected L-BFGS over existence, thresholding, discrete polish |
 //! | [`refine`] | continuous pose and size refinement of chosen primitives, existence re-check |
 //! | [`detect`] | shape detection from the data: plane / cylinder / sphere segments |
+//! | [`compact`] | the compact model (the default [`fit()`]): detected shapes as candidates, kept by the chamfer with a description length |
 //! | [`ray`] | ray likelihood (thesis eq. 4.10), RayTree, Metropolis–Hastings (thesis ch. 4) |
 //! | [`mod@register`] | registration of a mesh: the entry point, its options, the report, the pose scoring |
 //! | [`synth`] | synthetic scenes with ground truth |
@@ -127,7 +128,7 @@ pub mod atlas;
 pub mod chamfer;
 mod check;
 mod cloud;
-mod compact;
+pub mod compact;
 pub mod detect;
 mod error;
 pub mod fit;

@@ -57,7 +57,6 @@ use rayon::prelude::*;
 pub use model::SurfaceModel;
 
 pub(crate) use grow::{GrowParams, grow_regions};
-pub(crate) use leftover::LINK_SPACINGS;
 pub(crate) use noise::NoiseMap;
 pub(crate) use normals::Neighbourhoods;
 pub(crate) use sample::{voxel_grid, voxel_subsample};

@@ -21,8 +21,7 @@ pub use crate::solve::{DEFAULT_MAX_ITERATIONS, DEFAULT_SEARCH_POINTS};
 /// The primitive type of the lattice when none is named ([`FitOptions::lattice`]).
 pub const DEFAULT_KIND: ShapeKind = ShapeKind::Square;
 /// The name of "the types the data supports" (`--types auto`, the default): an empty
-/// [`FitOptions::kinds`], the compact model (`compact/`: shapes detected in the data,
-/// [`crate::detect`]).
+/// [`FitOptions::kinds`], the compact model of [`crate::compact`].
 pub const AUTO_TYPES: &str = "auto";
 
 /// The primitive types of `names` (`square`, `cylinder`, …); `["auto"]` (or nothing) is

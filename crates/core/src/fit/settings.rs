@@ -80,11 +80,11 @@ pub enum MethodSettings {
     /// Ray likelihood + Metropolis–Hastings (thesis ch. 4).
     Mcmc(McmcSettings),
     /// The probabilistic chamfer over candidates detected in the data (`types` auto,
-    /// `compact/`); the lattice settings (size, spacing, frame, …) play no part.
+    /// [`crate::compact`]); the lattice settings (size, spacing, frame, …) play no part.
     Compact(CompactSettings),
 }
 
-/// What the compact model (`compact/`) found and used, for `result.json`.
+/// What the compact model ([`crate::compact`]) found and used, for `result.json`.
 #[derive(Debug, Clone, PartialEq)]
 pub struct CompactSettings {
     /// Detected segments (planes, cylinders, spheres).
