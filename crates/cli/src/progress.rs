@@ -5,7 +5,7 @@ use std::io::IsTerminal;
 use std::sync::Mutex;
 
 use indicatif::{ProgressBar, ProgressStyle};
-use primfit_core::progress::Progress;
+use primfit_core::Progress;
 
 /// A [`Progress`] that draws one bar per stage.
 pub struct Bars {

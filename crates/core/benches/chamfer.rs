@@ -12,8 +12,8 @@ use std::time::Duration;
 use common::{BenchScene, Kind};
 use criterion::measurement::WallTime;
 use criterion::{BenchmarkGroup, BenchmarkId, Criterion, criterion_group, criterion_main};
+use primfit_core::Silent;
 use primfit_core::chamfer::{Coefficients, Evaluator, PointModel};
-use primfit_core::progress::Silent;
 
 /// The benchmark scenes at each size: a pipe at 20k, the hallway at 100k and 1M.
 pub fn scenes(model: PointModel) -> Vec<BenchScene> {

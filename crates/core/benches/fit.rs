@@ -10,9 +10,9 @@ use std::time::Duration;
 
 use common::{BenchScene, Kind};
 use criterion::{BenchmarkId, Criterion, criterion_group, criterion_main};
+use primfit_core::Silent;
 use primfit_core::chamfer::PointModel;
 use primfit_core::fit::fit;
-use primfit_core::progress::Silent;
 
 fn whole_fit(c: &mut Criterion) {
     for model in [PointModel::Existence, PointModel::Independent] {

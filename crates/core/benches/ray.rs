@@ -24,9 +24,9 @@
 use std::hint::black_box;
 
 use criterion::{Criterion, criterion_group, criterion_main};
+use primfit_core::Silent;
 use primfit_core::lattice::{CandidateSet, LatticeSpec};
 use primfit_core::na::{Point3, UnitQuaternion};
-use primfit_core::progress::Silent;
 use primfit_core::ray::{
     McmcOptions, PriorOptions, RayModel, RayTable, Rays, SceneState, existence_prior, flip_rates,
     sample,

@@ -32,9 +32,9 @@ use std::time::Instant;
 
 use common::BenchScene;
 use primfit_core::Error;
+use primfit_core::Progress;
 use primfit_core::fit::{FitResult, fit};
 use primfit_core::metrics::{MetricsOptions, evaluate};
-use primfit_core::progress::Progress;
 use serde_json::{Value, json};
 
 /// Scenes of the default table: the 20k pipe, the 100k and 1M hallways (both point

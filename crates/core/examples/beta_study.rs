@@ -5,8 +5,8 @@
 //!     cargo run --release --example beta_study
 use primfit_core::Limit;
 use primfit_core::ShapeKind;
+use primfit_core::Silent;
 use primfit_core::fit::{FitOptions, binary_chamfer, fit};
-use primfit_core::progress::Silent;
 use primfit_core::synth::{Density, HallwayParams, PipeParams, Scene, hallway, pipe};
 
 /// Fit chamfer ÷ truth chamfer (≤ 1 means as good as the truth or better).

@@ -9,12 +9,12 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use primfit_core::PointIndex;
+use primfit_core::Silent;
 use primfit_core::compact::{CompactOptions, compact_model};
 use primfit_core::fit::primitives_mesh;
 use primfit_core::io::{Encoding, read_cloud, write_mesh};
 use primfit_core::metrics::{MetricsOptions, evaluate};
-use primfit_core::progress::Silent;
-use primfit_core::spatial::PointIndex;
 use primfit_core::{Primitive, Shape};
 
 /// Planes listed individually.

@@ -11,9 +11,9 @@
 use std::path::PathBuf;
 use std::time::Instant;
 
+use primfit_core::PointIndex;
 use primfit_core::detect::{DetectOptions, SurfaceModel, detect};
 use primfit_core::io::read_cloud;
-use primfit_core::spatial::PointIndex;
 
 /// Planes listed individually.
 const LISTED_PLANES: usize = 100;

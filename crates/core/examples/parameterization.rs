@@ -4,8 +4,8 @@
 //!
 //!     cargo run --release --example parameterization
 use primfit_core::ShapeKind;
+use primfit_core::Silent;
 use primfit_core::fit::{FitOptions, fit};
-use primfit_core::progress::Silent;
 use primfit_core::solve::{Parameterization, SolverOptions};
 use primfit_core::synth::{Density, HallwayParams, PipeParams, hallway, pipe};
 

@@ -12,9 +12,9 @@
 
 use std::path::PathBuf;
 
+use primfit_core::PointIndex;
 use primfit_core::atlas::{Shape, fit_plane_primitive};
 use primfit_core::metrics::{MetricsOptions, evaluate};
-use primfit_core::spatial::{PointIndex, median_spacing};
 use primfit_core::{fit, io};
 use serde_json::json;
 
@@ -37,7 +37,9 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     )?;
     let cloud = io::read_cloud(&scan)?;
     let index = PointIndex::new(&cloud.points);
-    let spacing = median_spacing(&cloud.points, &index, SPACING_PROBES).ok_or("too few points")?;
+    let spacing = index
+        .median_spacing(&cloud.points, SPACING_PROBES)
+        .ok_or("too few points")?;
     let cell = k * spacing;
     let started = std::time::Instant::now();
     let plane = fit_plane_primitive(&cloud.points, None, cell)?;

@@ -19,9 +19,9 @@ use std::path::PathBuf;
 use std::str::FromStr;
 use std::time::Instant;
 
+use primfit_core::Silent;
 use primfit_core::atlas::MeshShape;
 use primfit_core::io;
-use primfit_core::progress::Silent;
 use primfit_core::register::{RegisterOptions, register};
 use primfit_core::synth::{RegistrationParams, asymmetric_object, registration};
 use serde_json::json;
@@ -54,7 +54,7 @@ fn main() {
         }
         None => asymmetric_object(),
     };
-    let (lo, hi) = primfit_core::cloud::bounds_of(&mesh.mesh.vertices).expect("vertices");
+    let (lo, hi) = primfit_core::bounds_of(&mesh.mesh.vertices).expect("vertices");
     let size = (hi - lo).norm();
     if let Some(dir) = &scenes {
         std::fs::create_dir_all(dir).expect("scene folder");

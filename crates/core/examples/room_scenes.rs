@@ -10,11 +10,11 @@
 use std::collections::BTreeMap;
 use std::path::PathBuf;
 
+use primfit_core::PointIndex;
+use primfit_core::Silent;
 use primfit_core::compact::{CompactOptions, compact_model};
 use primfit_core::io::{Encoding, write_cloud, write_json_atomic};
 use primfit_core::na::Vector3;
-use primfit_core::progress::Silent;
-use primfit_core::spatial::PointIndex;
 use primfit_core::synth::{RoomScene, room, room_presets};
 
 /// The three most frequent true surfaces among `ids` (`(surface, points)`).

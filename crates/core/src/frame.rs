@@ -72,9 +72,9 @@ pub const SNAP_ANGLE: f64 = 0.5 * std::f64::consts::PI / 180.0;
 pub enum FrameChoice {
     /// The scene axes, origin as given (or 0): the behaviour of a plain lattice.
     Axis,
-    /// Estimated from the cloud ([`estimate_frame`], [`grid_origin`]).
+    /// Estimated from the cloud: the scan's dominant axes, and a grid origin on the data.
     Auto,
-    /// A given rotation, and optionally a grid origin (otherwise [`grid_origin`]).
+    /// A given rotation, and optionally a grid origin (otherwise one on the data).
     Given {
         /// Lattice frame → scene.
         rotation: UnitQuaternion<f64>,

@@ -11,45 +11,61 @@
 //!      ─► primitives ─► outputs (JSON, mesh PLY, metrics)
 //! ```
 //!
+//! # The public surface
+//!
+//! The crate root re-exports what a user calls; the modules below group the rest of a
+//! coherent API each. Everything else is private: the local-surface PCA (`surface`), the
+//! lattice frame (`frame`; its [`fit::FrameChoice`] is a fit option), the kd-trees
+//! (`spatial`; [`PointIndex`] is re-exported), and the small modules behind the root
+//! re-exports
+//! (`cloud`, `primitive`, `error`, `check`, `limit`, `progress`).
+//!
+//! | at the root | what it is |
+//! |---|---|
+//! | [`fit()`], [`FitOptions`], [`FitResult`] | the whole pipeline: a cloud in, primitives and their existence out |
+//! | [`register()`], [`RegisterOptions`], [`Registration`] | particle-filter registration of a mesh in a cloud |
+//! | [`evaluate`], [`Metrics`], [`MetricsOptions`] | the measures of a model against its cloud (DESIGN §4) |
+//! | [`read_cloud`], [`read_mesh`], [`write_mesh`] | files: clouds of every accepted format, PLY meshes |
+//! | [`PointCloud`], [`bounds_of`], [`PointIndex`] | a cloud (points, optional normals, colours, sensor origins), its bounds, a kd-tree over it |
+//! | [`Primitive`], [`Pose`], [`Hit`] | a shape placed in the scene, its pose, a ray's first hit on it |
+//! | [`Shape`], [`ShapeKind`], [`MeshShape`], [`TriMesh`] | primitive types in their local frame, a triangle mesh |
+//! | [`Progress`], [`Silent`] | how long stages report progress |
+//! | [`Error`], [`Result`], [`Unit`], [`Remedy`], [`Limit`] | the typed error, what its amounts count and what would fix it; a count that may be unlimited |
+//! | [`VERSION`], [`na`] | the library version; nalgebra, whose points and rotations the API uses |
+//!
 //! | module | concept |
 //! |---|---|
+//! | [`mod@fit`] | the pipeline's options, defaults, resolved settings and result (`result.json`) |
 //! | [`atlas`] | primitive *types*: local-frame surfaces (disk, square, cylinder, elbow, sphere, mesh, plane) |
-//! | [`primitive`] | a type placed in the scene by a [`primitive::Pose`] |
-//! | [`surface`] | local normals, flatness and noise level by PCA of k nearest neighbours |
-//! | [`detect`] | shape detection from the data: region growing, plane / cylinder / sphere segments |
-//! | [`frame`] | the lattice frame: the scan's dominant axes and a grid origin on the data |
 //! | [`lattice`] | the candidate set G = types × orientations × translation grid |
 //! | [`chamfer`] | the probabilistic chamfer distance: coefficients, value, gradient |
 //! | [`solve`] | projected L-BFGS over existence, thresholding, discrete polish |
-//! | [`ray`] | ray likelihood (thesis eq. 4.10), RayTree, Metropolis–Hastings (thesis ch. 4) |
 //! | [`refine`] | continuous pose and size refinement of chosen primitives, existence re-check |
+//! | [`detect`] | shape detection from the data: plane / cylinder / sphere segments |
+//! | [`compact`] | the compact model (the default [`fit()`]): detected shapes as candidates, kept by the chamfer with a description length |
+//! | [`ray`] | ray likelihood (thesis eq. 4.10), RayTree, Metropolis–Hastings (thesis ch. 4) |
+//! | [`mod@register`] | registration of a mesh: the entry point, its options, the report, the pose scoring |
 //! | [`synth`] | synthetic scenes with ground truth |
-//! | [`register`] | particle-filter registration of a mesh, the chamfer as measurement |
-//! | [`metrics`] | the measures of DESIGN §4 |
+//! | [`metrics`] | the measures of DESIGN §4 and their parts |
 //! | [`render`] | pictures of a fit: a PNG and an interactive HTML page |
-//! | [`io`] | PLY and JSON |
-//! | [`error`], [`check`] | the typed error and the range checks that build it |
-//! | [`limit`] | a count that may be unlimited (`inf`) |
+//! | [`io`] | cloud readers (PLY, PCD, LAS/LAZ, E57, text), mesh writers (PLY, OBJ, GLB), atomic writes |
 //!
 //! Units: every length is in the cloud's units (metres for the bundled data); distances
 //! inside losses are **squared** Euclidean, as in the thesis.
 //!
 //! # Fitting a cloud
 //!
-//! [`fit::fit`] runs the whole pipeline on a [`PointCloud`]: here a small synthetic
+//! [`fit()`] runs the whole pipeline on a [`PointCloud`]: here a small synthetic
 //! hallway (floor and two walls tiled by 1 m squares, 1 cm jitter), fitted with 1 m
 //! squares on a 0.5 m lattice and then refined. `FitOptions::default()` is what
 //! `primfit fit` does without flags (an estimated frame, refinement); here the lattice is
 //! kept on the scene axes, on which the synthetic hallway lies.
 //!
 //! ```
-//! use primfit_core::ShapeKind;
-//! use primfit_core::fit::{FitOptions, fit};
-//! use primfit_core::frame::FrameChoice;
-//! use primfit_core::metrics::{MetricsOptions, evaluate};
-//! use primfit_core::progress::Silent;
+//! use primfit_core::fit::FrameChoice;
 //! use primfit_core::refine::RefineOptions;
 //! use primfit_core::synth::{Density, HallwayParams, hallway};
+//! use primfit_core::{FitOptions, MetricsOptions, ShapeKind, Silent, evaluate, fit};
 //!
 //! let scene = hallway(&HallwayParams {
 //!     length: 2.0,
@@ -82,9 +98,9 @@
 //! ([`chamfer::SampleSets`]); the fitter uses a lattice ([`lattice::CandidateSet`]).
 //!
 //! ```
+//! use primfit_core::Silent;
 //! use primfit_core::chamfer::{ChamferOptions, Coefficients, Evaluator, SampleSets};
 //! use primfit_core::na::Point3;
-//! use primfit_core::progress::Silent;
 //!
 //! // Five points on the x axis; candidate 0 is sampled on them, candidate 1 a metre above.
 //! let on_line = |z: f64| (0..5).map(move |i| Point3::new(i as f64, 0.0, z));
@@ -111,33 +127,39 @@ pub use nalgebra as na;
 
 pub mod atlas;
 pub mod chamfer;
-pub mod check;
-pub mod cloud;
+mod check;
+mod cloud;
 pub mod compact;
 pub mod detect;
-pub mod error;
+mod error;
 pub mod fit;
-pub mod frame;
+mod frame;
 pub mod io;
 pub mod lattice;
-pub mod limit;
+mod limit;
 pub mod metrics;
-pub mod primitive;
-pub mod progress;
+mod primitive;
+mod progress;
 pub mod ray;
 pub mod refine;
 pub mod register;
 pub mod render;
 pub mod solve;
-pub mod spatial;
-pub mod surface;
+mod spatial;
+mod surface;
 pub mod synth;
 
-pub use atlas::{Shape, ShapeKind, TriMesh};
-pub use cloud::PointCloud;
-pub use error::{Error, Result};
+pub use atlas::{MeshShape, Shape, ShapeKind, TriMesh};
+pub use cloud::{PointCloud, bounds_of};
+pub use error::{Error, Remedy, Result, Unit};
+pub use fit::{FitOptions, FitResult, fit};
+pub use io::{read_cloud, read_mesh, write_mesh};
 pub use limit::Limit;
+pub use metrics::{Metrics, MetricsOptions, evaluate};
 pub use primitive::{Hit, Pose, Primitive};
+pub use progress::{Progress, Silent};
+pub use register::{RegisterOptions, Registration, register};
+pub use spatial::PointIndex;
 
 /// The library version, written into every `result.json` as `"primfit"`.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");

@@ -100,6 +100,37 @@ impl PointIndex {
             .map(|r| (r.item, r.distance))
             .collect()
     }
+    /// Median distance from a point to its nearest other point, estimated on at most
+    /// `max_probe` evenly spaced points of `points` (the points this index was built
+    /// over): the cloud's typical point spacing. `None` when fewer than two distinct
+    /// points exist.
+    ///
+    /// ```
+    /// use primfit_core::PointIndex;
+    /// use primfit_core::na::Point3;
+    ///
+    /// let points: Vec<_> = (0..10).map(|i| Point3::new(0.5 * i as f64, 0.0, 0.0)).collect();
+    /// let index = PointIndex::new(&points);
+    /// assert_eq!(index.median_spacing(&points, 100), Some(0.5));
+    /// ```
+    pub fn median_spacing(&self, points: &[Point3<f64>], max_probe: usize) -> Option<f64> {
+        if points.len() < 2 {
+            return None;
+        }
+        let stride = (points.len() / max_probe.max(1)).max(1);
+        let mut d: Vec<f64> = points
+            .iter()
+            .step_by(stride)
+            .filter_map(|p| self.nearest_n(p, 2).get(1).map(|r| r.1.sqrt()))
+            .filter(|d| *d > 0.0)
+            .collect();
+        if d.is_empty() {
+            return None;
+        }
+        let mid = d.len() / 2;
+        d.select_nth_unstable_by(mid, f64::total_cmp);
+        Some(d[mid])
+    }
 }
 
 /// A static KD-tree over 2-D points (kiddo's `ImmutableKdTree<f64, 2>`), tolerant of
@@ -132,16 +163,6 @@ impl PlaneIndex {
             tree,
             len: points.len(),
         }
-    }
-
-    /// Number of indexed points.
-    pub fn len(&self) -> usize {
-        self.len
-    }
-
-    /// True when no points are indexed.
-    pub fn is_empty(&self) -> bool {
-        self.len == 0
     }
 
     /// Ids of every point with squared distance ≤ `r2` from `q`, unsorted.
@@ -223,11 +244,6 @@ impl<'a> PrimitiveIndex<'a> {
         Ok(PrimitiveIndex { prims, classes })
     }
 
-    /// The indexed primitives.
-    pub fn primitives(&self) -> &'a [Primitive] {
-        self.prims
-    }
-
     /// The nearest primitive surface to `p`: `(index, distance)`, or `None` for an
     /// empty index. Ties go to the lower index.
     pub fn nearest(&self, p: &Point3<f64>) -> Option<(usize, f64)> {
@@ -255,28 +271,6 @@ impl<'a> PrimitiveIndex<'a> {
         }
         best
     }
-}
-
-/// Median distance from a point to its nearest other point, estimated on at most
-/// `max_probe` evenly spaced points: the cloud's typical point spacing. `None` when fewer
-/// than two distinct points exist.
-pub fn median_spacing(points: &[Point3<f64>], index: &PointIndex, max_probe: usize) -> Option<f64> {
-    if points.len() < 2 {
-        return None;
-    }
-    let stride = (points.len() / max_probe.max(1)).max(1);
-    let mut d: Vec<f64> = points
-        .iter()
-        .step_by(stride)
-        .filter_map(|p| index.nearest_n(p, 2).get(1).map(|r| r.1.sqrt()))
-        .filter(|d| *d > 0.0)
-        .collect();
-    if d.is_empty() {
-        return None;
-    }
-    let mid = d.len() / 2;
-    d.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(d[mid])
 }
 
 #[cfg(test)]
@@ -381,6 +375,6 @@ mod tests {
     fn median_spacing_of_unit_grid_is_one() {
         let pts = grid();
         let idx = PointIndex::new(&pts);
-        assert!((median_spacing(&pts, &idx, 100).unwrap() - 1.0).abs() < 1e-12);
+        assert!((idx.median_spacing(&pts, 100).unwrap() - 1.0).abs() < 1e-12);
     }
 }

@@ -160,7 +160,7 @@ pub fn noise_floor(spacing: f64) -> f64 {
 
 /// The floored noise level σ (scene units): `max(σ_pca, spacing/√12)`, with `σ_pca` the
 /// [`noise_level`] of `planes` and the floor [`noise_floor`] of the cloud's point
-/// `spacing` (median nearest-neighbour distance, [`crate::spatial::median_spacing`]).
+/// `spacing` (median nearest-neighbour distance, [`PointIndex::median_spacing`](crate::PointIndex::median_spacing)).
 /// Never 0 for a positive spacing; the floor alone when `planes` is empty.
 pub fn noise_sigma(planes: &[LocalPlane], spacing: f64) -> f64 {
     noise_level(planes).unwrap_or(0.0).max(noise_floor(spacing))
@@ -217,7 +217,7 @@ mod tests {
         let pts = tilted_plane(0.0);
         let idx = PointIndex::new(&pts);
         let planes = local_planes(&pts, &idx, 16, 500);
-        let spacing = crate::spatial::median_spacing(&pts, &idx, 1000).unwrap();
+        let spacing = idx.median_spacing(&pts, 1000).unwrap();
         assert!((spacing - 1.0 / 30.0).abs() < 1e-9);
         let sigma = noise_sigma(&planes, spacing);
         assert!(

@@ -10,11 +10,11 @@
 
 use std::path::Path;
 
+use primfit_core::Silent;
 use primfit_core::fit::{FitOptions, fit};
 use primfit_core::io::read_cloud;
 use primfit_core::metrics::{default_coverage_tau, double_cover_share, overlap_share};
 use primfit_core::na::{Point3, Vector3};
-use primfit_core::progress::Silent;
 use primfit_core::{Primitive, Shape};
 
 /// The mug's radius (m), measured by hand on the scan: its rim spans 0.080 m.

@@ -16,12 +16,12 @@
 //! the same measures of the truth itself beside them: the floor the data allow.
 
 use nalgebra::Vector3;
+use primfit_core::PointIndex;
+use primfit_core::Silent;
 use primfit_core::compact::{CompactModel, CompactOptions, compact_model};
 use primfit_core::metrics::{
     MetricsOptions, default_coverage_tau, double_cover_share, evaluate, overlap_share,
 };
-use primfit_core::progress::Silent;
-use primfit_core::spatial::PointIndex;
 use primfit_core::synth::{RoomScene, room, room_preset, room_presets};
 use primfit_core::{Primitive, Shape};
 

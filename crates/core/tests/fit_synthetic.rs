@@ -3,9 +3,9 @@
 //! "As good as the truth" is measured on the fitter's own terms: the exact binary chamfer
 //! of the fitted set against the true set's, and the DESIGN §4 measures of both.
 
+use primfit_core::Silent;
 use primfit_core::fit::{FitOptions, FitResult, binary_chamfer, fit};
 use primfit_core::metrics::{Metrics, MetricsOptions, evaluate};
-use primfit_core::progress::Silent;
 use primfit_core::synth::{
     HallwayParams, NineCylinderParams, PipeParams, Scene, hallway, nine_cylinders, pipe,
 };

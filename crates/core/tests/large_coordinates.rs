@@ -5,10 +5,10 @@
 //! neighbourhood (covariances, distances to far points) lose what cancels; the fit must
 //! not depend on where the scene sits.
 
+use primfit_core::Silent;
+use primfit_core::fit::FrameChoice;
 use primfit_core::fit::{FitOptions, FitResult, fit};
-use primfit_core::frame::FrameChoice;
 use primfit_core::na::Vector3;
-use primfit_core::progress::Silent;
 use primfit_core::refine::RefineOptions;
 use primfit_core::synth::{PipeParams, Scene, pipe};
 use primfit_core::{PointCloud, Primitive, Shape};

@@ -2,7 +2,6 @@
 
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use primfit_core::metrics::*;
-use primfit_core::spatial::PrimitiveIndex;
 use primfit_core::synth::{HallwayParams, axis_rotation, hallway, sample_shape_local};
 use primfit_core::{Pose, Primitive, Shape};
 use rand::{RngExt, SeedableRng};
@@ -83,8 +82,7 @@ fn indexed_point_to_model_equals_brute_force_many_mixed_sizes() {
         })
         .collect();
     let points: Vec<_> = (0..3000).map(|_| random_point(&mut rng, 6.0)).collect();
-    let index = PrimitiveIndex::new(&model).unwrap();
-    let fast: Vec<f64> = points.iter().map(|p| index.nearest(p).unwrap().1).collect();
+    let fast = point_to_model_distances(&points, &model).unwrap();
     assert_eq!(fast, brute_force(&points, &model));
 }
 

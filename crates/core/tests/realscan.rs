@@ -10,11 +10,11 @@
 //! samples are on average about σ from the nearest input point).
 
 use primfit_core::ShapeKind;
+use primfit_core::Silent;
+use primfit_core::fit::FrameChoice;
 use primfit_core::fit::{FitOptions, FitResult, fit};
-use primfit_core::frame::FrameChoice;
 use primfit_core::metrics::{Metrics, MetricsOptions, evaluate};
 use primfit_core::na::{Matrix3, UnitQuaternion};
-use primfit_core::progress::Silent;
 use primfit_core::refine::RefineOptions;
 use primfit_core::synth::{
     Density, HallwayParams, Misalignment, Noise, PipeParams, Scene, hallway, pipe,

@@ -7,8 +7,8 @@
 
 use std::path::Path;
 
+use primfit_core::Silent;
 use primfit_core::atlas::MeshShape;
-use primfit_core::progress::Silent;
 use primfit_core::register::{RegisterOptions, Registration, register};
 use primfit_core::synth::{RegistrationParams, asymmetric_object, registration};
 use primfit_core::{Pose, io};
@@ -17,7 +17,7 @@ const MAX_ROTATION_DEG: f64 = 3.0;
 const MAX_TRANSLATION_REL: f64 = 0.01;
 
 fn model_size(mesh: &MeshShape) -> f64 {
-    let (lo, hi) = primfit_core::cloud::bounds_of(&mesh.mesh.vertices).unwrap();
+    let (lo, hi) = primfit_core::bounds_of(&mesh.mesh.vertices).unwrap();
     (hi - lo).norm()
 }
 

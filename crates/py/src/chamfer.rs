@@ -4,9 +4,9 @@
 use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use primfit_core::Limit;
+use primfit_core::Silent;
 use primfit_core::chamfer::{ChamferOptions, Coefficients, Evaluator, PointModel, SampleSets};
 use primfit_core::na::Point3;
-use primfit_core::progress::Silent;
 use pyo3::prelude::*;
 use rayon::prelude::*;
 

@@ -4,19 +4,19 @@
 use std::path::PathBuf;
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
+use primfit_core::PointIndex;
+use primfit_core::Silent;
 use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::chamfer::{CandidateGeometry, Coefficients, PointModel};
+use primfit_core::fit::FrameChoice;
 use primfit_core::fit::{
     self as core_fit, FitOptions, FitResult, McmcFitOptions, MethodOptions, Settings, parse_types,
 };
-use primfit_core::frame::FrameChoice;
 use primfit_core::lattice::CandidateSet;
 use primfit_core::metrics::{self, MetricsOptions};
 use primfit_core::na::Point3;
-use primfit_core::progress::Silent;
 use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
-use primfit_core::spatial::PointIndex;
 use primfit_core::{Limit, PointCloud, Result, io};
 use pyo3::exceptions::{PyOSError, PyRuntimeError, PyValueError};
 use pyo3::prelude::*;

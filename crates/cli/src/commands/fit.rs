@@ -5,11 +5,11 @@ use std::path::PathBuf;
 use anyhow::{Context, Result, bail};
 use clap::Args;
 use primfit_core::atlas::{MeshShape, ShapeKind};
+use primfit_core::fit::FrameChoice;
 use primfit_core::fit::{
     AUTO_TYPES, DEFAULT_FRAME, DEFAULT_MAX_ITERATIONS, DEFAULT_PRIOR, DEFAULT_SEARCH_POINTS,
     DEFAULT_SEED, FitOptions, McmcFitOptions, MethodOptions, fit, parse_types,
 };
-use primfit_core::frame::FrameChoice;
 use primfit_core::io::{self, Encoding};
 use primfit_core::na::Point3;
 use primfit_core::refine::RefineOptions;

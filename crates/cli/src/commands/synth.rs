@@ -331,7 +331,7 @@ fn rescan(mut scene: Scene, frames: usize, a: &SynthArgs) -> Result<Scene> {
     if frames == 0 {
         bail!("--scan needs at least one frame");
     }
-    let (lo, hi) = primfit_core::cloud::bounds_of(&scene.cloud.points)
+    let (lo, hi) = primfit_core::bounds_of(&scene.cloud.points)
         .context("the scene has no points to place the sensor")?;
     let centre = Point3::from((lo.coords + hi.coords) / 2.0);
     let extent = hi - lo;

@@ -6,11 +6,11 @@
 //! scene lives on.
 #![allow(dead_code)] // each bench target uses a different subset
 
+use primfit_core::PointIndex;
+use primfit_core::Silent;
 use primfit_core::chamfer::{Coefficients, PointModel};
 use primfit_core::fit::{FitOptions, Settings};
 use primfit_core::lattice::CandidateSet;
-use primfit_core::progress::Silent;
-use primfit_core::spatial::PointIndex;
 use primfit_core::synth::{Density, HallwayParams, PipeParams, hallway, pipe};
 use primfit_core::{PointCloud, ShapeKind};
 

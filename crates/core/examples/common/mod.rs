@@ -5,9 +5,9 @@
 use std::time::Instant;
 
 use primfit_core::ShapeKind;
+use primfit_core::Silent;
 use primfit_core::fit::{FitOptions, fit};
 use primfit_core::metrics::{MetricsOptions, evaluate};
-use primfit_core::progress::Silent;
 use primfit_core::refine::RefineOptions;
 use primfit_core::synth::{Density, Misalignment, Noise, PipeParams, Scene, pipe};
 

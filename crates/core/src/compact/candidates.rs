@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use crate::atlas::{PlaneShape, plane_frame};
 use crate::detect::{Detection, Segment, SurfaceModel};
-use crate::spatial::{PointIndex, median_spacing};
+use crate::spatial::PointIndex;
 use crate::{Primitive, Shape};
 
 /// Outline cells per point spacing: the occupancy grid of a plane's outline has cells of
@@ -76,7 +76,9 @@ fn segment_candidates(
 /// The median nearest-neighbour distance among `points`.
 fn own_spacing(points: &[Point3<f64>]) -> Option<f64> {
     let index = PointIndex::new(points);
-    median_spacing(points, &index, SPACING_PROBES).filter(|s| *s > 0.0)
+    index
+        .median_spacing(points, SPACING_PROBES)
+        .filter(|s| *s > 0.0)
 }
 
 /// The bounded plane of `points` (all on the plane of `normal`), one part per connected

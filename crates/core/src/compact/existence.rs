@@ -26,10 +26,9 @@ pub struct Existence {
     /// The continuous existence probability at the end of L-BFGS (0 for a candidate
     /// the dominance test removed).
     pub probability: Vec<f64>,
-    /// The binary loss of the decided scene, description lengths included.
-    pub loss: f64,
     /// The solver's output, over all candidates (a dominated candidate: probability 0,
-    /// absent).
+    /// absent); `solution.binary.total` is the binary loss of the decided scene,
+    /// description lengths included.
     pub solution: Solution,
 }
 
@@ -70,7 +69,6 @@ pub fn decide_existence(
         return Ok(Existence {
             exists: Vec::new(),
             probability: Vec::new(),
-            loss: nothing.total,
             solution: Solution::nothing(0, nothing),
         });
     }
@@ -100,7 +98,6 @@ pub fn decide_existence(
     Ok(Existence {
         exists,
         probability,
-        loss: solution.binary.total,
         solution,
     })
 }
@@ -202,7 +199,8 @@ mod tests {
             .min_by(|&a, &b| values[a].total_cmp(&values[b]))
             .unwrap();
         assert_eq!(best, 1, "brute force picks the whole square alone");
-        assert!((values[best] - e.loss).abs() <= 1e-9 * e.loss.max(1.0));
+        let loss = e.solution.binary.total;
+        assert!((values[best] - loss).abs() <= 1e-9 * loss.max(1.0));
     }
 
     #[test]
@@ -227,6 +225,6 @@ mod tests {
 
         let e = decide_existence(&points, &[], &[], &[], &options(), &Silent).unwrap();
         assert!(e.exists.is_empty());
-        assert!((e.loss - points.len() as f64 * 0.01).abs() < 1e-9);
+        assert!((e.solution.binary.total - points.len() as f64 * 0.01).abs() < 1e-9);
     }
 }

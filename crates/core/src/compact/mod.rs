@@ -16,12 +16,7 @@ mod geometry;
 mod mdl;
 mod model;
 
-pub use candidates::{
-    OUTLINE_CELLS_PER_SPACING, Proposal, TUBE_SECTORS, propose, supported_samples,
-};
-pub use existence::{Existence, ExistenceOptions, decide_existence};
-pub use mdl::{description_length, primitive_cost};
 pub use model::{
-    CAP_SIGMAS, CAP_SPACINGS, CompactModel, CompactOptions, EXISTENCE_BETA, SAMPLE_SPACINGS,
-    compact_model,
+    CAP_SIGMAS, CAP_SPACINGS, CompactModel, CompactOptions, EXISTENCE_BETA, MAX_CANDIDATE_SAMPLES,
+    SAMPLE_SPACINGS, compact_model,
 };

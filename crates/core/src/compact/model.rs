@@ -79,7 +79,7 @@ pub struct CompactModel {
 
 /// The compact model of `points` (indexed by `index`): shapes detected from the data
 /// ([`crate::detect`]), proposed as bounded candidates, kept by the probabilistic
-/// chamfer with a description length per primitive ([`super::mdl`]).
+/// chamfer with a description length per primitive (`mdl.rs`).
 pub fn compact_model(
     points: &[Point3<f64>],
     index: &PointIndex,

@@ -157,22 +157,6 @@ pub fn refit_cylinder(points: &[Point3<f64>], start: &CylinderFit) -> Option<Cyl
     Some(refine(&used, axis).finish(points))
 }
 
-/// The cylinder through `point` along the unit `axis` with `radius`, bounded to the axial
-/// extent of `points`, with their RMS distance (no refitting).
-pub fn bound_cylinder(
-    points: &[Point3<f64>],
-    point: &Point3<f64>,
-    axis: &Vector3<f64>,
-    radius: f64,
-) -> CylinderFit {
-    Axis {
-        point: *point,
-        dir: *axis,
-        radius,
-    }
-    .finish(points)
-}
-
 /// An infinite cylinder: a point on the axis, the unit axis, the radius.
 #[derive(Debug, Clone, Copy)]
 struct Axis {

@@ -10,7 +10,7 @@
 //! |---|---|---|
 //! | samples | clouds above [`DEFAULT_MAX_SAMPLES`] points are voxel-subsampled to at most that many | `sample.rs` |
 //! | normals | PCA of the `k` nearest samples: normal, flatness ("curvature"), residual | `normals.rs` |
-//! | noise | `σ = max(σ_pca, s/√12)` ([`crate::surface::noise_sigma`]), `s` the point spacing | `surface.rs` |
+//! | noise | `σ = max(σ_pca, s/√12)` (`surface::noise_sigma`), `s` the point spacing | `surface.rs` |
 //! | regions | smoothness-constrained region growing, seeds by increasing curvature | `grow.rs` |
 //! | models | plane if it fits within `t σ`, else cylinder / sphere if markedly better, else clutter | `classify.rs`, `plane.rs`, `cylinder.rs`, `sphere.rs` |
 //! | split | a region no model explains is split by peeling its dominant plane | `split.rs` |
@@ -36,16 +36,16 @@
 //! merging run sequentially over fixed orders.
 
 mod classify;
-pub mod cylinder;
+mod cylinder;
 mod expand;
 mod grow;
 mod leftover;
 mod model;
-pub mod noise;
+mod noise;
 mod normals;
-pub mod plane;
+mod plane;
 mod sample;
-pub mod sphere;
+mod sphere;
 mod split;
 
 #[cfg(test)]
@@ -54,25 +54,23 @@ mod tests;
 use nalgebra::Point3;
 use rayon::prelude::*;
 
-pub use classify::{CURVED_GAIN, Classified, MAX_RADIUS_PER_EXTENT, classify};
-pub use grow::{GrowParams, grow_regions};
-pub use leftover::LINK_SPACINGS;
-pub use model::{SurfaceModel, z_to};
-pub use noise::NoiseMap;
-pub use normals::Neighbourhoods;
-pub use sample::{voxel_grid, voxel_subsample};
-pub use split::{MAX_SPLIT_DEPTH, PLANE_CANDIDATES};
+pub use model::SurfaceModel;
+
+pub(crate) use grow::{GrowParams, grow_regions};
+pub(crate) use noise::NoiseMap;
+pub(crate) use normals::Neighbourhoods;
+pub(crate) use sample::{voxel_grid, voxel_subsample};
 
 use crate::check;
-use crate::spatial::{PointIndex, median_spacing};
+use crate::spatial::PointIndex;
 use crate::{Error, Primitive, Result};
 use merge::{Part, merge_parts};
 use split::Splitter;
 
 mod merge;
 
-/// Neighbours per normal estimate (the point itself included): as
-/// [`crate::surface::DEFAULT_NEIGHBOURS`].
+/// Neighbours per normal estimate (the point itself included): as the noise estimate of
+/// the fit (`surface::DEFAULT_NEIGHBOURS`).
 pub const DEFAULT_NEIGHBOURS: usize = crate::surface::DEFAULT_NEIGHBOURS;
 
 /// Neighbours examined per region-growing step (the nearest of the `k`, itself
@@ -206,7 +204,7 @@ pub struct Detection {
     pub unassigned: Vec<usize>,
     /// The noise σ over the whole cloud at the fine scale (scene units): the median
     /// local residual of the flattest half of the samples' neighbourhoods, at least
-    /// `spacing / √12`. Region growing uses its local values ([`NoiseMap`]).
+    /// `spacing / √12`. Region growing uses its local values (`noise.rs`).
     pub noise: f64,
     /// The noise σ models are judged against, over the whole cloud (scene units): the
     /// larger of [`Detection::noise`] and the σ at the coarse scale (`noise.rs`).
@@ -235,7 +233,7 @@ pub fn detect(
 ) -> Result<Detection> {
     options.validate()?;
     check_input(points, index)?;
-    let Some(spacing) = median_spacing(points, index, SPACING_PROBES) else {
+    let Some(spacing) = index.median_spacing(points, SPACING_PROBES) else {
         return Ok(Detection::nothing(
             points.len(),
             options.noise.unwrap_or(0.0),

@@ -86,11 +86,6 @@ impl Neighbourhoods {
         self.normals.len()
     }
 
-    /// True when there are no points.
-    pub fn is_empty(&self) -> bool {
-        self.normals.is_empty()
-    }
-
     /// The `k` neighbours of point `i` (itself first).
     pub fn row(&self, i: usize) -> &[u32] {
         &self.neighbours[i * self.k..(i + 1) * self.k]

@@ -323,7 +323,7 @@ impl SettingsDoc {
         match (self.method.as_str(), &self.ray, &self.mcmc) {
             ("chamfer", _, _) => Ok((
                 self.detect.as_ref().map_or(MethodSettings::Chamfer, |d| {
-                    MethodSettings::Compact(d.into())
+                    MethodSettings::Compact(d.to_settings())
                 }),
                 None,
             )),
@@ -397,14 +397,15 @@ impl From<&CompactSettings> for DetectDoc {
     }
 }
 
-impl From<&DetectDoc> for CompactSettings {
-    fn from(d: &DetectDoc) -> Self {
+impl DetectDoc {
+    /// The compact model's settings this entry was written from.
+    fn to_settings(&self) -> CompactSettings {
         CompactSettings {
-            segments: d.segments,
-            proposed: d.proposed,
-            growing_noise: d.growing_noise,
-            angle_degrees: d.angle_degrees,
-            voxel: d.voxel,
+            segments: self.segments,
+            proposed: self.proposed,
+            growing_noise: self.growing_noise,
+            angle_degrees: self.angle_degrees,
+            voxel: self.voxel,
         }
     }
 }

@@ -13,7 +13,7 @@
 //! | pick | `mod.rs` | of the two passes, the one with the lower [`binary_chamfer`] |
 //!
 //! What comes out is a [`FitResult`] (`result.rs`: stats, `result.json`, mesh; the JSON
-//! schema is [`document`]). The
+//! schema is `document.rs`). The
 //! ray-likelihood method of thesis ch. 4 ([`MethodOptions::Mcmc`]) is a separate
 //! pipeline over the same settings (`mcmc.rs`).
 //!
@@ -27,17 +27,17 @@
 //! | `radius` | `size / 10` (tube radius of cylinders and elbows) |
 //! | `bend` | `spacing` (elbow centre-line radius) |
 //! | `cap` | `max(spacing, 5σ)`: every point is within half a step of some lattice position, so a point farther than a whole step from every chosen primitive is treated as unexplained; on very noisy scans (noise σ, see below) a point within 5σ of a surface still counts as explained. `d_cap = cap²` |
-//! | noise σ | the median off-plane spread of the flattest half of the k = 32 nearest-neighbour neighbourhoods of up to 4 000 evenly strided points ([`crate::surface::noise_level`], [`crate::surface::NOISE_MAX_POINTS`]) |
+//! | noise σ | the median off-plane spread of the flattest half of the k = 32 nearest-neighbour neighbourhoods of up to 4 000 evenly strided points (`surface::noise_level`, `surface::NOISE_MAX_POINTS`) |
 //! | `sample_spacing` | `min(size / 16, 2π·radius / 12)` but never finer than the cloud's median point spacing |
 //! | `beta` | 32 candidates per point ([`DEFAULT_BETA`]; 24 was the least that recovered every synthetic pipe) |
 //! | `alpha` | 10 samples per candidate ([`DEFAULT_ALPHA`], thesis §6.3), `independent` model only |
-//! | frame | `auto` ([`DEFAULT_FRAME`]): the scan's dominant axes ([`crate::frame::estimate_frame`]); [`FitOptions::lattice`] is the plain lattice on the scene axes, without refinement |
-//! | lattice origin | `axis`: the scene origin; `auto` and a given frame without origin: grid planes on the data ([`crate::frame::grid_origin`]) |
+//! | frame | `auto` ([`DEFAULT_FRAME`]): the scan's dominant axes (`frame::estimate_frame`); [`FitOptions::lattice`] is the plain lattice on the scene axes, without refinement |
+//! | lattice origin | `axis`: the scene origin; `auto` and a given frame without origin: grid planes on the data (`frame::grid_origin`) |
 //! | refinement | on ([`crate::refine::RefineOptions::default`]) |
 
 mod budget;
 mod compact;
-pub mod document;
+pub(crate) mod document;
 mod gaps;
 mod mcmc;
 mod options;
@@ -48,6 +48,8 @@ mod settings;
 #[cfg(test)]
 mod tests;
 
+/// The lattice frame a fit uses ([`FitOptions::frame`]).
+pub use crate::frame::FrameChoice;
 pub use budget::{BYTES_PER_POINT, estimate_bytes};
 pub use mcmc::McmcRun;
 pub use options::{
@@ -69,7 +71,7 @@ use pass::fit_pass;
 /// Fits primitives to `cloud`: a lattice pass (candidates, coefficients, L-BFGS, polish),
 /// then, with [`FitOptions::refine`], continuous refinement ([`crate::refine`]). With an
 /// estimated frame (`auto`) and refinement, the lattice is then re-aligned to the refined
-/// primitives ([`crate::frame::realign`]: their axes and the grid phase of their centres)
+/// primitives (`frame::realign`: their axes and the grid phase of their centres)
 /// and fitted and refined once more; the pass with the lower binary chamfer is kept.
 ///
 /// With [`MethodOptions::Mcmc`] the ray likelihood and Metropolis–Hastings decide

@@ -141,7 +141,7 @@ fn unrecorded_solution() -> Solution {
 }
 
 /// The `result.json` document shared by `fit`, `synth --truth` and `register`
-/// ([`ResultDoc`]): their own `settings` and `metrics`, and the primitives.
+/// (`document.rs`): their own `settings` and `metrics`, and the primitives.
 pub fn result_json(
     settings: Value,
     metrics: Value,

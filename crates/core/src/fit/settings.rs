@@ -18,7 +18,7 @@ use crate::lattice::LatticeSpec;
 use crate::ray::RayModel;
 use crate::refine::RefineOptions;
 use crate::solve::SolverOptions;
-use crate::spatial::{PointIndex, median_spacing};
+use crate::spatial::PointIndex;
 use crate::surface::{
     DEFAULT_MAX_POINTS, DEFAULT_NEIGHBOURS, NOISE_MAX_POINTS, local_planes, noise_level,
 };
@@ -316,7 +316,8 @@ impl Settings {
     /// Resolves every default from the cloud (see the module docs) and validates.
     pub fn resolve(cloud: &PointCloud, index: &PointIndex, o: &FitOptions) -> Result<Settings> {
         let diagonal = extent(cloud)?;
-        let point_spacing = median_spacing(&cloud.points, index, SPACING_PROBES)
+        let point_spacing = index
+            .median_spacing(&cloud.points, SPACING_PROBES)
             .unwrap_or(diagonal / DIAGONALS_PER_POINT_SPACING);
         let noise = noise_level(&local_planes(
             &cloud.points,
@@ -449,7 +450,8 @@ impl Settings {
         }
     }
 
-    /// Every setting as JSON (`result.json`'s `"settings"`, [`SettingsDoc`]).
+    /// Every setting as JSON (`result.json`'s `"settings"`; its schema is in
+    /// `fit/document.rs`).
     pub fn to_json(&self) -> Value {
         serde_json::to_value(SettingsDoc::new(self, None)).unwrap_or(Value::Null)
     }

@@ -82,7 +82,7 @@ mod collect;
 mod detect;
 mod e57;
 mod export;
-pub mod json;
+pub(crate) mod json;
 mod las;
 mod palette;
 mod pcd;

@@ -19,9 +19,10 @@
 //! has no infinity), `coverage` is 0 and `compactness` 0. The same `null` appears for any
 //! other non-finite value. An empty cloud is an error.
 //!
-//! Speed: point→model uses a [`PrimitiveIndex`] (kd-trees over primitive centres, one per
-//! bounding-radius class), so each point computes exact distances only to primitives
-//! whose bounding ball can beat the best distance found so far.
+//! Speed: point→model uses a primitive index (`spatial::PrimitiveIndex`: kd-trees over
+//! primitive centres, one per bounding-radius class), so each point computes exact
+//! distances only to primitives whose bounding ball can beat the best distance found so
+//! far.
 
 use nalgebra::Point3;
 use rayon::prelude::*;

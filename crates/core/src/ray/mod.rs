@@ -3,12 +3,12 @@
 //!
 //! Every point is a ray from its sensor origin ([`Rays`], needs
 //! [`crate::PointCloud::sensors`]). The likelihood of a scene Φ is a sum over rays of
-//! eq. 4.10 in log space ([`likelihood`]); the candidates crossing each ray are found once
-//! with per-frame [`RayTree`]s and stored, with their per-crossing terms, in a
-//! [`RayTable`] (Algorithm 2); [`SceneState`] re-evaluates only the rays of flipped
-//! candidates (Algorithm 3); [`sample`] is the §4.2.2 sampler with the §4.2.1 prior
-//! ([`existence_prior`]); [`crate::fit::fit`] with [`crate::fit::MethodOptions::Mcmc`]
-//! is the pipeline behind `primfit fit --method mcmc`.
+//! eq. 4.10 in log space ([`ray_log_likelihood`], `likelihood.rs`); the candidates
+//! crossing each ray are found once with per-frame [`RayTree`]s and stored, with their
+//! per-crossing terms, in a [`RayTable`] (Algorithm 2); [`SceneState`] re-evaluates
+//! only the rays of flipped candidates (Algorithm 3); [`sample`] is the §4.2.2 sampler
+//! with the §4.2.1 prior ([`existence_prior`]); [`crate::fit::fit`] with
+//! [`crate::fit::MethodOptions::Mcmc`] is the pipeline behind `primfit fit --method mcmc`.
 //!
 //! Units: lengths in scene units (metres), log-likelihoods in nats, the noise rate in
 //! points per scene unit of ray.
@@ -27,11 +27,11 @@
 //! assert!(truth > nearest);
 //! ```
 
-pub mod incremental;
-pub mod likelihood;
-pub mod mcmc;
-pub mod prior;
-pub mod raytree;
+mod incremental;
+mod likelihood;
+mod mcmc;
+mod prior;
+mod raytree;
 #[cfg(test)]
 pub(crate) mod tests;
 
@@ -39,4 +39,4 @@ pub use incremental::SceneState;
 pub use likelihood::{RayModel, crossing_terms, log_upper_tail, ray_log_likelihood};
 pub use mcmc::{McmcOptions, McmcResult, flip_rates, sample};
 pub use prior::{PriorOptions, existence_prior};
-pub use raytree::{Entry, RayTable, RayTree, Rays, naive_log_likelihood};
+pub use raytree::{Entry, RayTable, RayTree, Rays, SEEN_SIGMAS, naive_log_likelihood};

@@ -41,7 +41,7 @@ use self::recheck::{binary_loss, recheck};
 use self::retype::{RETYPE_AFTER_ROUNDS, Retyped, retype};
 use crate::atlas::Shape;
 use crate::chamfer::ChamferOptions;
-use crate::spatial::{PointIndex, median_spacing};
+use crate::spatial::PointIndex;
 use crate::{Primitive, Result, check};
 
 /// Clouds larger than this are refined on an evenly strided subset of this many points
@@ -178,8 +178,9 @@ fn refine_subsampled(
     let points: Vec<Point3<f64>> = ctx.points.iter().step_by(stride).copied().collect();
     let index = PointIndex::new(&points);
     let k = ctx.points.len() as f64 / points.len() as f64;
-    let point_spacing =
-        median_spacing(&points, &index, SPACING_PROBES).unwrap_or(ctx.point_spacing * k.sqrt());
+    let point_spacing = index
+        .median_spacing(&points, SPACING_PROBES)
+        .unwrap_or(ctx.point_spacing * k.sqrt());
     let chamfer = ChamferOptions {
         point_weight: ctx.chamfer.point_weight * k,
         ..ctx.chamfer.clone()

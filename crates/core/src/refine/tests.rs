@@ -26,7 +26,7 @@ fn context<'a>(
     RefineContext {
         points,
         index,
-        point_spacing: median_spacing(points, index, 2000).unwrap(),
+        point_spacing: index.median_spacing(points, 2000).unwrap(),
         sample_spacing: 0.05,
         chamfer,
         shapes: &[],

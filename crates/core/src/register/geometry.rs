@@ -134,11 +134,6 @@ impl Particles {
             .expect("one template, every id 0");
         Particles { set, grid }
     }
-
-    /// Gives the template back (to reuse it for the next round's poses).
-    pub fn into_template(mut self) -> Template {
-        self.set.templates.pop().expect("one template")
-    }
 }
 
 impl CandidateGeometry for Particles {

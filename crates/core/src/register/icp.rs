@@ -45,8 +45,6 @@ pub struct IcpResult {
     pub inliers: Vec<usize>,
     /// Root-mean-square distance of the inliers to the surface (scene units).
     pub rms: f64,
-    /// Iterations run.
-    pub iterations: usize,
 }
 
 /// Trimmed ICP: each iteration pairs every cloud point within the current correspondence
@@ -66,13 +64,11 @@ pub fn refine(
     let mut pose = start;
     let mut tau = options.start_distance.max(options.min_distance);
     let radius = mesh.bounding_radius();
-    let mut iterations = 0;
     for _ in 0..options.max_iterations {
         let pairs = correspondences(mesh, grid, cloud, &pose, tau, radius);
         if pairs.len() < 3 {
             break;
         }
-        iterations += 1;
         let next = solve_motion(&pairs, &pose, freedom, options.scale_range);
         let moved = radius
             * (next.scale * next.rotation.angle_to(&pose.rotation)
@@ -95,7 +91,6 @@ pub fn refine(
         pose,
         inliers: pairs.iter().map(|p| p.3).collect(),
         rms,
-        iterations,
     }
 }
 

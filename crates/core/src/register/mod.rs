@@ -6,7 +6,7 @@
 //!
 //! **First population.** Rotation only: prior draws. With translation search, the 6-D
 //! prior is far too large to sample a close pose from (thesis §6.3.3), so translations
-//! are not drawn but **voted** ([`vote`]): for each of
+//! are not drawn but **voted** (`vote.rs`): for each of
 //! [`RegisterOptions::screen_draws`] prior rotations (and scales), every (cloud point,
 //! model sample) pair votes for the translation that would put the sample on the
 //! point; the object's points pile their votes on the true translation while the
@@ -19,7 +19,7 @@
 //!
 //! 1. the particles form the candidate set, together with an explicit **outlier
 //!    primitive** (points uniformly filling the scene's bounding box,
-//!    [`geometry::OutlierBox`]) and any objects already found;
+//!    `geometry.rs`) and any objects already found;
 //! 2. the probabilistic chamfer (existence model, exact surface distances) is built over
 //!    them and [`crate::solve::solve`] gives every particle's existence probability;
 //! 3. each particle is measured by the binary chamfer decrease when it is added to the
@@ -52,7 +52,7 @@
 //!
 //! The best particle and the best of every other basin (or, where a basin is empty, the
 //! best particle's flip) are then settled by trimmed ICP and measured; the best is
-//! refined by trimmed ICP against the exact mesh surface ([`icp::refine`]), so the
+//! refined by trimmed ICP against the exact mesh surface (`icp.rs`), so the
 //! answer is precise, not just particle-close. Its existence is
 //! decided by a last chamfer solve over {outlier primitive, found objects, new pose};
 //! several objects are found one after another, each search conditioned on those already
@@ -64,15 +64,16 @@
 //! `x = s R x_local + t` (DESIGN §3); every random choice comes from one
 //! [`rand_chacha::ChaCha8Rng`] seeded with [`RegisterOptions::seed`].
 
-pub mod geometry;
-pub mod icp;
-pub mod particle_filter;
-pub mod vote;
+mod geometry;
+mod icp;
+mod particle_filter;
+mod vote;
 
 mod options;
 mod report;
 
 pub use options::RegisterOptions;
+pub use particle_filter::RoundStats;
 pub use report::{FoundObject, Registration};
 
 use std::sync::Arc;
@@ -191,7 +192,7 @@ pub fn score_poses(
 /// 100 surface points and 100 uniform outliers:
 ///
 /// ```
-/// use primfit_core::progress::Silent;
+/// use primfit_core::Silent;
 /// use primfit_core::register::{RegisterOptions, register};
 /// use primfit_core::synth::{RegistrationParams, asymmetric_object, registration};
 ///

@@ -35,12 +35,12 @@ pub struct RegisterOptions {
     /// Cloud points (a stride subsample) of the screening proxy.
     pub screen_points: usize,
     /// With translation search: vote peaks kept per prior rotation of the first
-    /// population ([`vote::vote_translation`](super::vote::vote_translation); each becomes a particle with that
+    /// population (`vote.rs`; each becomes a particle with that
     /// translation); 0 = draw translations from the prior instead.
     pub vote_peaks: usize,
     /// With translation votes: the candidates (rotation, vote peak) with the most votes
     /// that form the first population, each translation refined at point level
-    /// ([`vote::refine_peak`](super::vote::refine_peak)).
+    /// (`vote.rs`).
     pub vote_keep: usize,
     /// Bin (grid cell) of the translation vote, fraction of the model size.
     pub vote_bin: f64,

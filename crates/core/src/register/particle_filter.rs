@@ -21,7 +21,8 @@ use crate::lattice::Template;
 use crate::progress::Progress;
 use crate::{Pose, Result};
 
-pub use initial::random_rotation;
+#[cfg(test)]
+pub(crate) use initial::random_rotation;
 pub(crate) use measurement::Measurement;
 pub use resampling::{systematic, tempered_weights};
 
@@ -47,10 +48,6 @@ pub struct RoundStats {
 pub struct FilterResult {
     /// Best pose of the last round.
     pub pose: Pose,
-    /// Its measurement.
-    pub score: f64,
-    /// Kernel of the last round (scene units).
-    pub kernel: f64,
     /// Per-round statistics.
     pub rounds: Vec<RoundStats>,
     /// For each approximate symmetry flip `f` of the model (index ≥ 1 of
@@ -135,12 +132,11 @@ impl Context<'_> {
         let o = self.options;
         let mut poses = self.initial(rng);
         let mut rounds = Vec::new();
-        let mut best = (Pose::identity(), f64::NEG_INFINITY);
+        let mut best = Pose::identity();
         let mut stable = 0;
-        let mut kernel = o.kernel_start * self.size;
         let mut basins = vec![None; self.flips.len().saturating_sub(1)];
         for round in 0..o.max_rounds {
-            kernel =
+            let kernel =
                 self.size * (o.kernel_start * o.kernel_shrink.powi(round as i32)).max(o.kernel_end);
             let Measurement { score, existence } =
                 self.measure(found, poses.clone(), kernel, o.search_support, false, rng)?;
@@ -149,8 +145,8 @@ impl Context<'_> {
                 .enumerate()
                 .max_by(|a, b| a.1.total_cmp(b.1).then(b.0.cmp(&a.0)))
                 .expect("at least one particle");
-            let previous = best.0;
-            best = (poses[ib], sb);
+            let previous = best;
+            best = poses[ib];
             let weights = tempered_weights(&score, o.ess);
             let ess = 1.0 / weights.iter().map(|w| w * w).sum::<f64>();
             let ranking = self.rank(&poses, &score, ib);
@@ -170,7 +166,7 @@ impl Context<'_> {
             progress.advance(1);
             let at_end = kernel <= o.kernel_end * self.size * (1.0 + 1e-9);
             if at_end {
-                let settled = self.settled(&previous, &best.0, &rounds, kernel);
+                let settled = self.settled(&previous, &best, &rounds, kernel);
                 stable = if settled { stable + 1 } else { 0 };
                 if stable >= o.settle_rounds {
                     break;
@@ -182,9 +178,7 @@ impl Context<'_> {
             poses = self.next_population(&poses, &score, &weights, &ranking, kernel, rng);
         }
         Ok(FilterResult {
-            pose: best.0,
-            score: best.1,
-            kernel,
+            pose: best,
             rounds,
             basins,
         })

@@ -97,6 +97,7 @@ impl VoteIndex {
     }
 
     /// Number of indexed points.
+    #[cfg(test)]
     pub fn len(&self) -> usize {
         self.points.len()
     }

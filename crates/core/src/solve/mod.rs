@@ -2,12 +2,12 @@
 //!
 //! [`solve`] runs, in order:
 //!
-//! 1. **L-BFGS** ([`lbfgs()`], `lbfgs.rs`) on `p ∈ [0, 1]^N` (projected, box-constrained;
+//! 1. **L-BFGS** (`lbfgs.rs`) on `p ∈ [0, 1]^N` (projected, box-constrained;
 //!    default) or on logits `z` with `p = σ(z)` (unconstrained); see [`Parameterization`].
 //!    Large clouds run it first on a subset of the points, then briefly on all of them
 //!    ([`SolverOptions::search_points`]).
 //! 2. **Thresholding** at [`SolverOptions::threshold`].
-//! 3. **Discrete polish** ([`polish()`], `polish.rs` over the incremental state of
+//! 3. **Discrete polish** (`polish.rs` over the incremental state of
 //!    `polish_state.rs`): local moves while the exact binary chamfer decreases (removals
 //!    also when it stays equal, so redundant copies go).
 //!
@@ -19,7 +19,7 @@
 //! ```
 //! use primfit_core::chamfer::{ChamferOptions, Coefficients, SampleSets};
 //! use primfit_core::na::Point3;
-//! use primfit_core::progress::Silent;
+//! use primfit_core::Silent;
 //! use primfit_core::solve::{SolverOptions, solve};
 //!
 //! // Ten points on a segment; candidate 0 has samples on it, candidate 1 lies far away.
@@ -42,8 +42,8 @@ mod lbfgs;
 mod polish;
 mod polish_state;
 
-pub use lbfgs::{LbfgsRun, lbfgs};
-pub use polish::{Moves, polish};
+use lbfgs::{LbfgsRun, lbfgs};
+pub(crate) use polish::{Moves, polish};
 
 use crate::chamfer::{Coefficients, Evaluator, LossValue};
 use crate::check::{self, Interval};
