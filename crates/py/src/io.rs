@@ -5,8 +5,11 @@
 use std::path::PathBuf;
 
 use numpy::ndarray::{Array2, ArrayView2, Axis};
-use numpy::{IntoPyArray, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
+use numpy::{
+    IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods,
+};
 use primfit_core::atlas::MeshShape;
+use primfit_core::fit::primitives_mesh as primitives_core_mesh;
 use primfit_core::io::{self, Encoding};
 use primfit_core::na::Vector3;
 use primfit_core::{PointCloud, Primitive, Result};
@@ -20,6 +23,13 @@ use crate::synth::points_array;
 
 /// `(vertices (V, 3), faces (F, 3))`.
 type Mesh<'py> = (Bound<'py, PyArray2<f64>>, Bound<'py, PyArray2<i64>>);
+
+/// A [`Mesh`] and the index of each face's primitive.
+type OwnedMesh<'py> = (
+    Bound<'py, PyArray2<f64>>,
+    Bound<'py, PyArray2<i64>>,
+    Bound<'py, PyArray1<i64>>,
+);
 
 fn encoding(ascii: bool) -> Encoding {
     if ascii {
@@ -161,6 +171,27 @@ pub fn read_mesh<'py>(py: Python<'py>, path: PathBuf) -> PyResult<Mesh<'py>> {
     let faces: Vec<i64> = mesh.faces.iter().flatten().map(|&i| i64::from(i)).collect();
     let faces = Array2::from_shape_vec((mesh.faces.len(), 3), faces).expect("3 per face");
     Ok((points_array(py, &mesh.vertices), faces.into_pyarray(py)))
+}
+
+/// The triangle mesh of primitives (a JSON list in the `result.json` format), as
+/// `primfit fit --mesh` exports it: `(vertices (V, 3), faces (F, 3) int64, primitive
+/// (F,) int64)`, `primitive[f]` the index of the primitive face `f` belongs to.
+#[pyfunction]
+pub fn primitives_mesh<'py>(py: Python<'py>, primitives_json: &str) -> PyResult<OwnedMesh<'py>> {
+    let list = primitive_list(primitives_json)?;
+    let (mesh, owner) = pool::detached(py, || -> Result<_> {
+        let (prims, _) = parse_primitives(&list)?;
+        Ok(primitives_core_mesh(&prims))
+    })?
+    .py()?;
+    let faces: Vec<i64> = mesh.faces.iter().flatten().map(|&i| i64::from(i)).collect();
+    let faces = Array2::from_shape_vec((mesh.faces.len(), 3), faces).expect("3 per face");
+    let owner: Vec<i64> = owner.into_iter().map(i64::from).collect();
+    Ok((
+        points_array(py, &mesh.vertices),
+        faces.into_pyarray(py),
+        owner.into_pyarray(py),
+    ))
 }
 
 /// Primitives (a JSON list in the `result.json` format) and their `existence` when

@@ -24,7 +24,7 @@ mod _primfit {
     #[pymodule_export]
     use super::fit::{PyFitOptions, candidates, fit, fit_problem, read_result};
     #[pymodule_export]
-    use super::io::{read_mesh, read_ply, write_mesh, write_ply};
+    use super::io::{primitives_mesh, read_mesh, read_ply, write_mesh, write_ply};
     #[pymodule_export]
     use super::render::render;
     #[pymodule_export]

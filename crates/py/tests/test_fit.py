@@ -250,7 +250,7 @@ def test_fit_result_reads_back_from_json(tmp_path):
     cli = cli_binary()
     scene, out = tmp_path / "corner.ply", tmp_path / "result.json"
     primfit.write_ply(scene, corner())
-    run = subprocess.run([str(cli), "fit", str(scene), "-o", str(out), "--size", "1", "--quiet"],
+    run = subprocess.run([str(cli), "fit", str(scene), "-o", str(out), "--types", "square", "--size", "1", "--quiet"],
                          capture_output=True, text=True)
     assert run.returncode == 0, run.stderr
     from_cli = primfit.FitResult.from_json(out.read_text())

@@ -257,6 +257,31 @@ class FitResult:
         """The ``result.json`` document (DESIGN §3), as the CLI writes it."""
         return self._document
 
+    def to_mesh(self) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """The primitives as one triangle mesh, as ``primfit fit --mesh`` exports it:
+        ``(vertices (V, 3) float64, faces (F, 3) int64, primitive (F,) int64)``, where
+        ``primitive[f]`` is the index in :attr:`primitives` of face ``f``'s primitive."""
+        return _primfit.primitives_mesh(_primitive_list(self))
+
+    def to_trimesh(self) -> Any:
+        """The mesh of :meth:`to_mesh` as a ``trimesh.Trimesh`` (vertices as given, no
+        merging), with ``face_attributes["primitive"]``. Needs the ``trimesh`` package,
+        imported here: ``ImportError`` names it when it is missing."""
+        trimesh = _optional("trimesh")
+        vertices, faces, owner = self.to_mesh()
+        return trimesh.Trimesh(
+            vertices=vertices, faces=faces, face_attributes={"primitive": owner}, process=False
+        )
+
+    def to_open3d(self) -> Any:
+        """The mesh of :meth:`to_mesh` as an ``open3d.geometry.TriangleMesh``. Needs the
+        ``open3d`` package, imported here: ``ImportError`` names it when it is missing."""
+        o3d = _optional("open3d")
+        vertices, faces, _ = self.to_mesh()
+        return o3d.geometry.TriangleMesh(
+            o3d.utility.Vector3dVector(vertices), o3d.utility.Vector3iVector(faces.astype(np.int32))
+        )
+
     def __len__(self) -> int:
         return len(self.primitives)
 
@@ -279,12 +304,30 @@ def _fit_options(options: dict[str, Any]) -> _primfit.FitOptions:
     return _primfit.FitOptions(**options)
 
 
+def _optional(name: str) -> Any:
+    """The optional package ``name``, imported on demand."""
+    import importlib
+
+    try:
+        return importlib.import_module(name)
+    except ImportError as e:
+        raise ImportError(f"this needs the optional package {name!r} (pip install {name})") from e
+
+
 def _cloud(cloud: ArrayLike | Mapping[str, Any]) -> tuple[np.ndarray, dict[str, np.ndarray]]:
     """The points of ``cloud`` and, for a dict as :func:`read_ply` returns, the per-point
-    ``normals``, ``labels`` and ``sensors`` it has."""
+    ``normals``, ``labels`` and ``sensors`` it has. An object with a ``points``
+    attribute (an Open3D ``PointCloud``) gives its points, and its ``normals`` when its
+    ``has_normals()`` says so."""
+    if not isinstance(cloud, Mapping) and hasattr(cloud, "points") and not isinstance(cloud, np.ndarray):
+        o3d_cloud: Any = cloud
+        extra: dict[str, np.ndarray] = {}
+        if getattr(o3d_cloud, "has_normals", lambda: False)():
+            extra["normals"] = _points("cloud normals", np.asarray(o3d_cloud.normals))
+        return _points("cloud", np.asarray(o3d_cloud.points)), extra
     if not isinstance(cloud, Mapping):
         return _points("cloud", cloud), {}
-    extra: dict[str, np.ndarray] = {}
+    extra = {}
     for name in ("normals", "sensors"):
         if cloud.get(name) is not None:
             extra[name] = _points(name, cloud[name])
@@ -297,7 +340,8 @@ def fit(cloud: ArrayLike | Mapping[str, Any], **options: Any) -> FitResult:
     """Fits primitives to ``cloud``, as ``primfit fit`` does: with no options,
     ``fit(read_ply(path))`` gives the primitives of ``primfit fit path``.
 
-    ``cloud`` is a (J, 3) array, or a dict as :func:`read_ply` returns (its ``normals``,
+    ``cloud`` is a (J, 3) array-like, an Open3D ``PointCloud`` (any object with a
+    ``points`` attribute), or a dict as :func:`read_ply` returns (its ``normals``,
     ``labels`` and ``sensors`` are used by ``method="mcmc"``). Every option is a flag of
     ``primfit fit`` under the same name (``--no-refine`` is ``refine=False``,
     ``--no-polish`` is ``polish=False``); ``None`` or leaving it out takes the library's

@@ -19,6 +19,7 @@ __all__ = [
     "chamfer_problems",
     "fit",
     "fit_problem",
+    "primitives_mesh",
     "read_mesh",
     "read_ply",
     "read_result",
@@ -166,6 +167,7 @@ def write_ply(
 ) -> None: ...
 def read_mesh(path: str | os.PathLike[str]) -> tuple[_F64, _I64]: ...
 def write_mesh(path: str | os.PathLike[str], primitives_json: str, *, ascii: bool = False) -> None: ...
+def primitives_mesh(primitives_json: str) -> tuple[_F64, _I64, _I64]: ...
 def render(
     path: str | os.PathLike[str],
     cloud: _F64,
