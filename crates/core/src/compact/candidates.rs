@@ -65,9 +65,7 @@ fn segment_candidates(
         SurfaceModel::Plane { normal, .. } => {
             let own: Vec<Point3<f64>> = segment.points.iter().map(|&i| points[i]).collect();
             let spacing = own_spacing(&own).unwrap_or(fallback_spacing);
-            bounded_plane(&own, normal, OUTLINE_CELLS_PER_SPACING * spacing)
-                .into_iter()
-                .collect()
+            bounded_planes(&own, normal, OUTLINE_CELLS_PER_SPACING * spacing)
         }
         _ => segment.primitive().into_iter().collect(),
     }
@@ -82,13 +80,17 @@ fn own_spacing(points: &[Point3<f64>]) -> Option<f64> {
 }
 
 /// The bounded plane of `points` (all on the plane of `normal`), one part per connected
-/// part of them; `None` when they give no outline.
-fn bounded_plane(
+/// part of them. When the parts together are too complex for one plane
+/// ([`crate::atlas::MAX_PLANE_VERTICES`]: a large, much fragmented surface), one plane
+/// per part instead, so that no surface is lost; none when they give no outline.
+fn bounded_planes(
     points: &[Point3<f64>],
     normal: nalgebra::Vector3<f64>,
     cell: f64,
-) -> Option<Primitive> {
-    let pose = plane_frame(points, Some(normal)).ok()?;
+) -> Vec<Primitive> {
+    let Ok(pose) = plane_frame(points, Some(normal)) else {
+        return Vec::new();
+    };
     let local: Vec<Point2<f64>> = points
         .iter()
         .map(|p| {
@@ -96,8 +98,14 @@ fn bounded_plane(
             Point2::new(q.x, q.y)
         })
         .collect();
-    let shape = PlaneShape::whole_from_points(&local, cell).ok()?;
-    Some(Primitive::new(Shape::Plane(shape), pose))
+    let shapes = match PlaneShape::whole_from_points(&local, cell) {
+        Ok(whole) => vec![whole],
+        Err(_) => PlaneShape::parts_from_points(&local, cell).unwrap_or_default(),
+    };
+    shapes
+        .into_iter()
+        .map(|shape| Primitive::new(Shape::Plane(shape), pose))
+        .collect()
 }
 
 /// The samples (scene coordinates, about `spacing` apart) by which a candidate is judged:
