@@ -5,7 +5,6 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
-use primfit_core::atlas::MeshShape;
 use primfit_core::io;
 use primfit_core::metrics::{Metrics, MetricsOptions, evaluate};
 use primfit_core::{PointCloud, Primitive};
@@ -47,24 +46,12 @@ pub fn measure(
 
 /// Reads the primitives of a result JSON; mesh sources are resolved relative to it.
 pub fn read_primitives(path: &Path) -> Result<Vec<Primitive>> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("{}: cannot read", path.display()))?;
-    let doc: Value = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not valid JSON", path.display()))?;
+    let doc = super::model::read_document(path)?;
     let list = doc
         .get("primitives")
         .and_then(Value::as_array)
         .with_context(|| format!("{}: no \"primitives\" array", path.display()))?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    let load = |source: &str| {
-        let p = Path::new(source);
-        let p = if p.is_absolute() || p.exists() {
-            p.to_path_buf()
-        } else {
-            base.join(p)
-        };
-        MeshShape::new(source, io::read_mesh(&p)?)
-    };
+    let load = super::model::mesh_loader(path);
     list.iter()
         .enumerate()
         .map(|(k, v)| {

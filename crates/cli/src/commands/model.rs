@@ -15,20 +15,8 @@ use serde_json::Value;
 /// whole schema); any other result (`synth --truth`, `register`) by its `primitives`
 /// alone. Mesh sources are resolved relative to the result's folder.
 pub fn read_model(path: &Path) -> Result<(Vec<Primitive>, Option<Vec<f64>>)> {
-    let text = std::fs::read_to_string(path)
-        .with_context(|| format!("{}: cannot read", path.display()))?;
-    let doc: Value = serde_json::from_str(&text)
-        .with_context(|| format!("{}: not valid JSON", path.display()))?;
-    let base = path.parent().unwrap_or(Path::new("."));
-    let load = |source: &str| {
-        let p = Path::new(source);
-        let p = if p.is_absolute() || p.exists() {
-            p.to_path_buf()
-        } else {
-            base.join(p)
-        };
-        MeshShape::new(source, io::read_mesh(&p)?)
-    };
+    let doc = read_document(path)?;
+    let load = mesh_loader(path);
     if let Ok((result, _)) = FitResult::from_json(&doc, &load) {
         return Ok((result.primitives, Some(result.existence)));
     }
@@ -49,4 +37,26 @@ pub fn read_model(path: &Path) -> Result<(Vec<Primitive>, Option<Vec<f64>>)> {
         .map(|v| v.get("existence").and_then(Value::as_f64))
         .collect();
     Ok((primitives, existence))
+}
+
+/// The JSON document at `path`; the error names the file.
+pub fn read_document(path: &Path) -> Result<Value> {
+    let text = std::fs::read_to_string(path)
+        .with_context(|| format!("{}: cannot read", path.display()))?;
+    serde_json::from_str(&text).with_context(|| format!("{}: not valid JSON", path.display()))
+}
+
+/// Loads the mesh a primitive's `source` names: as given when absolute or present,
+/// else relative to the folder of the result at `path`.
+pub fn mesh_loader(path: &Path) -> impl Fn(&str) -> primfit_core::Result<MeshShape> + '_ {
+    let base = path.parent().unwrap_or(Path::new("."));
+    move |source: &str| {
+        let p = Path::new(source);
+        let p = if p.is_absolute() || p.exists() {
+            p.to_path_buf()
+        } else {
+            base.join(p)
+        };
+        MeshShape::new(source, io::read_mesh(&p)?)
+    }
 }

@@ -111,15 +111,8 @@ pub fn write_html(
     if let Some(scale) = options.scale {
         check::positive("color_scale", scale)?;
     }
-    if let Some(e) = existence
-        && e.len() != primitives.len()
-    {
-        return Err(Error::Mismatch {
-            what: "existence values",
-            len: e.len(),
-            per: "primitives",
-            expected: primitives.len(),
-        });
+    if let Some(e) = existence {
+        check::same_len("existence values", e.len(), "primitives", primitives.len())?;
     }
     let page = page(cloud, primitives, existence, options)?;
     let summary = HtmlSummary {

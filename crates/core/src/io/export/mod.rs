@@ -28,7 +28,7 @@ mod tests;
 use std::path::Path;
 
 use super::{Encoding, palette_color};
-use crate::{Error, Primitive, Result, TriMesh};
+use crate::{Error, Primitive, Result, TriMesh, check};
 
 /// The mesh formats [`write_primitives_mesh`] writes, as named in error messages.
 pub const MESH_FORMATS: &str = "PLY (.ply), OBJ (.obj), glTF binary (.glb)";
@@ -97,15 +97,8 @@ impl Part {
 
 /// The parts of `primitives`; `existence` must have one value each.
 fn parts(primitives: &[Primitive], existence: Option<&[f64]>) -> Result<Vec<Part>> {
-    if let Some(e) = existence
-        && e.len() != primitives.len()
-    {
-        return Err(Error::Mismatch {
-            what: "existence values",
-            len: e.len(),
-            per: "primitives",
-            expected: primitives.len(),
-        });
+    if let Some(e) = existence {
+        check::same_len("existence values", e.len(), "primitives", primitives.len())?;
     }
     Ok(primitives
         .iter()
