@@ -52,13 +52,18 @@ enum Command {
 
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if let Some(n) = cli.threads
-        && let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-    {
-        eprintln!("error: cannot start {n} threads: {e}");
-        return ExitCode::FAILURE;
+    if let Some(n) = cli.threads {
+        let started = primfit_core::budget::check_threads("threads", n)
+            .map_err(|e| errors::one_line(&e.into()))
+            .and_then(|n| {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(n);
+                pool.build_global()
+                    .map_err(|e| format!("cannot start {n} threads: {e}"))
+            });
+        if let Err(e) = started {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
     }
     let out = commands::Output {
         quiet: cli.quiet,

@@ -9,15 +9,14 @@
 
 use std::sync::{Arc, Mutex, PoisonError};
 
-use pyo3::exceptions::PyRuntimeError;
+use pyo3::exceptions::{PyRuntimeError, PyValueError};
 use pyo3::prelude::*;
 use rayon::{ThreadPool, ThreadPoolBuilder};
 
 /// The pool of the process that built it.
 static POOL: Mutex<Option<(u32, Arc<ThreadPool>)>> = Mutex::new(None);
 
-/// The current process's pool, built on first use (threads: `RAYON_NUM_THREADS` or the
-/// number of cores).
+/// The current process's pool, built on first use ([`threads_from_env`]).
 fn current() -> PyResult<Arc<ThreadPool>> {
     let pid = std::process::id();
     let mut slot = POOL.lock().unwrap_or_else(PoisonError::into_inner);
@@ -31,11 +30,28 @@ fn current() -> PyResult<Arc<ThreadPool>> {
     }
     let pool = ThreadPoolBuilder::new()
         .thread_name(|i| format!("primfit-{i}"))
+        .num_threads(threads_from_env()?)
         .build()
         .map_err(|e| PyRuntimeError::new_err(format!("cannot start worker threads: {e}")))?;
     let pool = Arc::new(pool);
     *slot = Some((pid, Arc::clone(&pool)));
     Ok(pool)
+}
+
+/// Worker threads: `RAYON_NUM_THREADS` when set (bounded by
+/// [`primfit_core::budget::max_threads`]), else one per core.
+fn threads_from_env() -> PyResult<usize> {
+    let Ok(text) = std::env::var("RAYON_NUM_THREADS") else {
+        return Ok(primfit_core::budget::available_cores());
+    };
+    let n = text.trim().parse::<usize>().map_err(|_| {
+        PyValueError::new_err(format!("RAYON_NUM_THREADS must be a count, got {text:?}"))
+    })?;
+    match n {
+        0 => Ok(primfit_core::budget::available_cores()),
+        n => primfit_core::budget::check_threads("RAYON_NUM_THREADS", n)
+            .map_err(|e| PyValueError::new_err(e.to_string())),
+    }
 }
 
 /// Runs `f` on this process's pool (call it with the GIL released).

@@ -53,8 +53,7 @@ pub const DEFAULT_MIN_COS: f64 = 0.2;
 pub const DEFAULT_FLIPS_PER_STEP: f64 = 1.0;
 /// Default `mcmc` flip-rate factor per frame of age.
 pub const DEFAULT_DECAY: f64 = 0.9;
-/// Default share of the machine's physical memory a fit may plan to use.
-pub const DEFAULT_MEMORY_SHARE: f64 = 0.5;
+pub use crate::budget::DEFAULT_MEMORY_SHARE;
 
 /// User-facing options of [`super::fit`]; `None` means "derive from the cloud"
 /// ([`super::Settings::resolve`]). The `Default` is `primfit fit`'s.

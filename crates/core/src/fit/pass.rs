@@ -2,10 +2,10 @@
 
 use std::time::Instant;
 
-use super::budget::estimate_bytes;
 use super::{FitResult, FitStats, Settings};
 use crate::atlas::Shape;
 use crate::chamfer::Coefficients;
+use crate::chamfer::estimate_bytes;
 use crate::error::{Remedy, Unit};
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
@@ -34,7 +34,7 @@ pub(super) fn refine_context<'a>(
 
 /// The peak memory the coefficients of `candidates` over `points` points will need, and
 /// the most samples of any template; an error when that is over the settings' budget.
-fn check_memory(
+pub(super) fn check_memory(
     points: usize,
     candidates: &CandidateSet,
     settings: &Settings,

@@ -8,7 +8,6 @@
 use nalgebra::{Point3, UnitQuaternion};
 use serde_json::Value;
 
-use super::budget::physical_memory;
 use super::document::SettingsDoc;
 use super::options::{FitOptions, McmcFitOptions, MethodOptions};
 use crate::atlas::{MeshShape, Shape, ShapeKind};
@@ -24,7 +23,7 @@ use crate::surface::{
 };
 use crate::{Error, PointCloud, Result, check};
 
-use super::options::{DEFAULT_KIND, DEFAULT_MEMORY_SHARE};
+use super::options::DEFAULT_KIND;
 
 /// Every setting of a fit, defaults resolved.
 #[derive(Debug, Clone)]
@@ -376,7 +375,9 @@ impl Settings {
             chamfer,
             solver: o.solver.clone(),
             seed: o.seed,
-            memory_budget: o.memory_budget.unwrap_or_else(default_memory_budget),
+            memory_budget: o
+                .memory_budget
+                .unwrap_or_else(crate::budget::default_memory_budget),
             mesh: o.mesh.clone(),
             method,
         })
@@ -455,11 +456,6 @@ impl Settings {
     pub fn to_json(&self) -> Value {
         serde_json::to_value(SettingsDoc::new(self, None)).unwrap_or(Value::Null)
     }
-}
-
-/// The default memory budget: [`DEFAULT_MEMORY_SHARE`] of the machine's memory (bytes).
-pub(super) fn default_memory_budget() -> u64 {
-    (physical_memory() as f64 * DEFAULT_MEMORY_SHARE) as u64
 }
 
 #[cfg(test)]
