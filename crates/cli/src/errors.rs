@@ -24,6 +24,7 @@ const FLAGS: &[(&str, &str)] = &[
     ("point_weight", "--weights"),
     ("max_iterations", "--max-iterations"),
     ("search_points", "--search-points"),
+    ("work_budget", "--work-budget"),
     ("rounds", "--refine-rounds"),
     ("mesh_model", "--mesh-model"),
     ("steps", "--steps"),

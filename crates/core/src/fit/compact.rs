@@ -111,6 +111,7 @@ fn compact_settings(options: &FitOptions, model: &CompactModel) -> Settings {
         memory_budget: options
             .memory_budget
             .unwrap_or_else(crate::budget::default_memory_budget),
+        work_budget: options.work_budget.unwrap_or(super::DEFAULT_WORK_PER_POINT),
         mesh: None,
         method: MethodSettings::Compact(CompactSettings {
             segments: detection.segments.len(),

@@ -312,6 +312,7 @@ impl SettingsDoc {
             solver,
             seed: self.seed,
             memory_budget: crate::budget::default_memory_budget(),
+            work_budget: super::DEFAULT_WORK_PER_POINT,
             mesh: self.mesh_model.as_deref().map(load).transpose()?,
             method,
         };

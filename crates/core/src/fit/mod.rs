@@ -47,6 +47,7 @@ mod result;
 mod settings;
 #[cfg(test)]
 mod tests;
+mod work;
 
 pub use crate::chamfer::{BYTES_PER_POINT, estimate_bytes};
 /// The lattice frame a fit uses ([`FitOptions::frame`]).
@@ -61,6 +62,7 @@ pub use options::{
 pub use problem::{candidate_samples, fit_candidates, fit_problem};
 pub use result::{FitResult, FitStats, binary_chamfer, primitives_mesh, result_json};
 pub use settings::{CompactSettings, McmcSettings, MethodSettings, Settings};
+pub use work::{DEFAULT_WORK_PER_POINT, estimate_work};
 
 use crate::frame::realign;
 use crate::progress::Progress;

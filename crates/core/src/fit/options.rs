@@ -100,6 +100,9 @@ pub struct FitOptions {
     /// Upper bound on the estimated peak memory of the fit ([`super::estimate_bytes`]),
     /// bytes (default: [`DEFAULT_MEMORY_SHARE`] of the machine's memory).
     pub memory_budget: Option<u64>,
+    /// Upper bound on the estimated work of a lattice pass ([`super::estimate_work`]),
+    /// distance evaluations per input point (default: [`super::DEFAULT_WORK_PER_POINT`]).
+    pub work_budget: Option<f64>,
     /// Seed for every random choice (the chamfer fit itself is deterministic).
     pub seed: u64,
 }
@@ -126,6 +129,7 @@ impl Default for FitOptions {
             solver: SolverOptions::default(),
             method: MethodOptions::default(),
             memory_budget: None,
+            work_budget: None,
             seed: DEFAULT_SEED,
         }
     }

@@ -2,6 +2,7 @@
 
 use std::time::Instant;
 
+use super::work::check_work;
 use super::{FitResult, FitStats, Settings};
 use crate::atlas::Shape;
 use crate::chamfer::Coefficients;
@@ -79,6 +80,8 @@ pub(super) fn fit_pass(
 ) -> Result<FitResult> {
     let t0 = Instant::now();
     let mut candidates = CandidateSet::build(&settings.lattice(), cloud)?;
+    // Before the filter below, whose own cost is every candidate's samples.
+    check_work(cloud.len(), &candidates, &settings)?;
     // Exact in effect: a candidate with no point within the cap of its surface can only
     // raise the loss (see `CandidateSet::near_data`).
     if settings.cap > 0.0 {

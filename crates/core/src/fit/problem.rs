@@ -5,6 +5,7 @@
 use nalgebra::Point3;
 
 use super::pass::check_memory;
+use super::work::check_work;
 use super::{FitOptions, Settings};
 use crate::budget;
 use crate::chamfer::{CandidateGeometry, Coefficients};
@@ -57,7 +58,7 @@ pub fn candidate_samples(
 
 /// The loss a lattice fit of `cloud` with `options` minimises: its settings and the
 /// chamfer coefficients over its candidates, refused up front (like the fit) when their
-/// estimated peak memory is over the settings' budget.
+/// estimated peak memory or work is over the settings' budgets.
 pub fn fit_problem(
     cloud: &PointCloud,
     options: &FitOptions,
@@ -65,6 +66,7 @@ pub fn fit_problem(
 ) -> Result<(Settings, Coefficients)> {
     let (settings, set) = fit_candidates(cloud, options)?;
     check_memory(cloud.len(), &set, &settings)?;
+    check_work(cloud.len(), &set, &settings)?;
     let coefficients = Coefficients::build(&cloud.points, &set, &settings.chamfer, progress)?;
     Ok((settings, coefficients))
 }

@@ -64,6 +64,9 @@ pub struct Settings {
     pub seed: u64,
     /// Budget for the estimated peak memory of a fit, bytes ([`super::estimate_bytes`]).
     pub memory_budget: u64,
+    /// Budget for the estimated work of a lattice pass, distance evaluations per point
+    /// ([`super::estimate_work`]).
+    pub work_budget: f64,
     /// Mesh source, if the mesh type is used.
     pub mesh: Option<MeshShape>,
     /// The inference method and the settings only it has.
@@ -137,6 +140,12 @@ impl McmcSettings {
             min_cos: o.min_cos,
         };
         ray.validate()?;
+        if let Some(steps) = o.steps {
+            check::at_most("steps", steps, MAX_MCMC_STEPS)?;
+        }
+        if let Some(burn_in) = o.burn_in {
+            check::at_most("burn_in", burn_in, MAX_MCMC_STEPS)?;
+        }
         Ok(McmcSettings {
             ray,
             prior: o.prior,
@@ -147,6 +156,10 @@ impl McmcSettings {
         })
     }
 }
+
+/// The most `mcmc` proposals (steps, and burn-in): 100× the default of a 5 000-candidate
+/// lattice, minutes of sampling at most.
+pub const MAX_MCMC_STEPS: usize = 10_000_000;
 
 /// The default `mcmc` σ is the spacing divided by this.
 const MCMC_SIGMA_PER_SPACING: f64 = 10.0;
@@ -271,6 +284,30 @@ fn extent(cloud: &PointCloud) -> Result<f64> {
     Ok(diagonal)
 }
 
+/// The work budget of `o` (per point), checked positive.
+pub(super) fn work_budget(o: &FitOptions) -> Result<f64> {
+    let budget = o.work_budget.unwrap_or(super::DEFAULT_WORK_PER_POINT);
+    check::positive("work_budget", budget)?;
+    Ok(budget)
+}
+
+/// A lattice type sized by `size` (all but the elbow and the mesh) smaller than the
+/// cloud's median point spacing holds about one point: its existence cannot be
+/// measured, and the fit would only multiply candidates.
+fn check_size_against_spacing(kinds: &[ShapeKind], size: f64, point_spacing: f64) -> Result<()> {
+    let sized = kinds.iter().any(|k| {
+        matches!(
+            k,
+            ShapeKind::Square | ShapeKind::Disk | ShapeKind::Sphere | ShapeKind::Cylinder
+        )
+    });
+    if sized && size < point_spacing {
+        let expected = format!("at least the cloud's median point spacing {point_spacing:.4}");
+        return Err(Error::out_of_range("size", size, expected));
+    }
+    Ok(())
+}
+
 /// The lattice frame, the frame estimate's support and the grid origin of `o.frame`:
 /// given values as they are, otherwise estimated from local planes of the cloud.
 fn resolve_frame(
@@ -346,6 +383,7 @@ impl Settings {
                 needed_by: "the mesh primitive type",
             });
         }
+        check_size_against_spacing(&kinds, size, point_spacing)?;
         let chamfer = chamfer_options(o, cap)?;
         if let Some(r) = &o.refine {
             r.validate()?;
@@ -378,6 +416,7 @@ impl Settings {
             memory_budget: o
                 .memory_budget
                 .unwrap_or_else(crate::budget::default_memory_budget),
+            work_budget: work_budget(o)?,
             mesh: o.mesh.clone(),
             method,
         })
