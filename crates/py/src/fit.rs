@@ -48,7 +48,8 @@ impl PyFitOptions {
         refine=None, refine_rounds=None, sample_spacing=None, model=None, alpha=None, beta=None,
         cap=None, weights=None, method=None, steps=None, burn_in=None, noise_rate=None,
         sigma=None, prior=None, parameterization=None, max_iterations=None, search_points=None,
-        polish=None, seed=None, mesh_model=None, memory_budget=None
+        polish=None, seed=None, mesh_model=None, memory_budget=None,
+        work_budget=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -81,6 +82,7 @@ impl PyFitOptions {
         seed: Option<u64>,
         mesh_model: Option<&Bound<'_, PyAny>>,
         memory_budget: Option<u64>,
+        work_budget: Option<f64>,
     ) -> PyResult<Self> {
         let d = FitOptions::default();
         let weights = convert::floats::<2>("weights", weights)?;
@@ -125,6 +127,7 @@ impl PyFitOptions {
             },
             method: method_options(method, mcmc)?.unwrap_or(d.method),
             memory_budget,
+            work_budget,
             seed: seed.unwrap_or(d.seed),
         }))
     }
@@ -257,8 +260,8 @@ pub fn fit<'py>(
     sensors: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<(String, Bound<'py, PyArray1<f64>>)> {
     let cloud = cloud_arrays(cloud, normals, None, labels, sensors, false)?;
-    let (doc, existence) = pool::detached(py, || -> Result<_> {
-        let result = core_fit::fit(&cloud, &options.0, &Silent)?;
+    let (doc, existence) = pool::cancellable(py, |interrupt| -> Result<_> {
+        let result = core_fit::fit(&cloud, &options.0, interrupt)?;
         let m = metrics::evaluate(
             &cloud.points,
             &result.primitives,

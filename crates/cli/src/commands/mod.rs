@@ -103,6 +103,7 @@ pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
             dir.display()
         );
     }
+    io::writable_target(path)?;
     for input in inputs {
         if same_file(path, input) {
             bail!(

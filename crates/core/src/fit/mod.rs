@@ -126,6 +126,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         return compact::fit_compact(cloud, &index, options, progress);
     }
     let settings = Settings::resolve(cloud, &index, options)?;
+    progress.checkpoint()?;
     progress.message(&format!("settings: {}", settings.to_json()));
     let first = fill_gaps(
         cloud,
@@ -145,6 +146,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         first.settings.spacing,
     );
     let settings = first.settings.realigned(frame, origin);
+    progress.checkpoint()?;
     progress.message(&format!(
         "re-aligned lattice: frame {:?}, origin {origin:?}",
         frame.quaternion().coords
@@ -157,6 +159,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     )?;
     let loss = |r: &FitResult| binary_chamfer(cloud, &r.primitives, &r.settings).map(|l| l.total);
     let (a, b) = (loss(&first)?, loss(&second)?);
+    progress.checkpoint()?;
     progress.message(&format!(
         "binary chamfer: first pass {a:.6}, re-aligned pass {b:.6}"
     ));

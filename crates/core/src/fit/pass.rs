@@ -96,6 +96,7 @@ pub(super) fn fit_pass(
         });
     }
     let (need, max_samples) = check_memory(cloud.len(), &candidates, &settings)?;
+    progress.checkpoint()?;
     progress.message(&format!(
         "{} candidates, {} samples per template at most",
         candidates.len(),
@@ -115,6 +116,7 @@ pub(super) fn fit_pass(
     candidates.retain(&reduced.keep_mask(lattice_candidates));
     let coeffs = reduced.coefficients;
     let coefficient_seconds = t1.elapsed().as_secs_f64();
+    progress.checkpoint()?;
     progress.message(&format!(
         "{} of {lattice_candidates} candidates can exist (the rest are dominated); \
          {} entries ({} bytes each, {:.1} MiB in all)",
@@ -138,6 +140,7 @@ pub(super) fn fit_pass(
         let shapes = settings.shapes();
         let ctx = refine_context(cloud, index, &settings, &shapes);
         let r: Refined = refine(&ctx, &primitives, options)?;
+        progress.checkpoint()?;
         progress.message(&format!(
             "refinement: binary chamfer {:.6} → {:.6}, {} primitives dropped, {:.2} s",
             r.loss_before, r.loss_after, r.dropped, r.seconds

@@ -96,7 +96,10 @@ use std::fmt;
 
 use std::path::Path;
 
-pub use atomic::{StagedFile, stage, stage_json, write_atomic, write_json_atomic};
+pub use atomic::{
+    StagedFile, remove_temporary_files, stage, stage_json, writable_target, write_atomic,
+    write_json_atomic,
+};
 pub use detect::{ACCEPTED_FORMATS, CloudFormat, PcdData, TextKind};
 pub use export::{MESH_FORMATS, MeshFormat, write_primitives_mesh};
 pub use palette::{PALETTE, palette_color};
