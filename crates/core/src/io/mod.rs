@@ -82,6 +82,7 @@ mod collect;
 mod detect;
 mod e57;
 mod export;
+mod guard;
 pub(crate) mod json;
 mod las;
 mod palette;
@@ -154,8 +155,8 @@ pub fn read_cloud_report(path: &Path) -> Result<(PointCloud, ReadReport)> {
     match detect::detect(path)? {
         Kind::Ply => ply::read_cloud_report(path),
         Kind::Pcd => pcd::read_cloud_report(path),
-        Kind::Las => las::read_cloud_report(path),
-        Kind::E57 => e57::read_cloud_report(path),
+        Kind::Las => guard::decoder(path, "LAS/LAZ", || las::read_cloud_report(path)),
+        Kind::E57 => guard::decoder(path, "E57", || e57::read_cloud_report(path)),
         Kind::Text(kind) => text::read_cloud_report(path, kind),
     }
 }
