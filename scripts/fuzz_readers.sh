@@ -6,5 +6,5 @@
 #   scripts/fuzz_readers.sh [CASES]
 set -euo pipefail
 cd "$(dirname "$0")/.."
-PRIMFIT_MUTATION_CASES=${1:-5000} cargo test --release --locked -p primfit-core --test formats \
+PRIMFIT_MUTATION_CASES=${1:-5000} cargo test --locked -p primfit-core --test formats \
     mutations::every_reader_survives -- --nocapture

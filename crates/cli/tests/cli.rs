@@ -513,7 +513,7 @@ fn bad_flags_fail_with_one_line_naming_the_flag_and_write_nothing() {
             "bend",
         ),
         (vec!["--sample-spacing", "1e-9"], "--sample-spacing"),
-        (vec!["--types", "sphere", "--size", "1e-12"], "--spacing"),
+        (vec!["--types", "sphere", "--size", "1e-12"], "--size"),
         (vec!["--cap", "-1"], "--cap"),
         (vec!["--weights", "1,nan"], "--weights"),
         (vec!["--origin", "1e15,0,0"], "--origin"),

@@ -172,7 +172,11 @@ impl FitArgs {
             ..defaults.refine.clone().unwrap_or_default()
         });
         let method = match MethodOptions::parse(&self.method)? {
-            MethodOptions::Mcmc(_) => MethodOptions::Mcmc(self.mcmc_options()),
+            MethodOptions::Mcmc(_) => {
+                let mcmc = self.mcmc_options();
+                mcmc.validate()?;
+                MethodOptions::Mcmc(mcmc)
+            }
             chamfer => chamfer,
         };
         Ok(FitOptions {

@@ -14,7 +14,7 @@ use crate::chamfer::PointModel;
 use crate::frame::FrameChoice;
 use crate::refine::RefineOptions;
 use crate::solve::SolverOptions;
-use crate::{Error, Limit, Result};
+use crate::{Error, Limit, Result, check};
 
 pub use crate::solve::{DEFAULT_MAX_ITERATIONS, DEFAULT_SEARCH_POINTS};
 
@@ -202,6 +202,23 @@ pub struct McmcFitOptions {
     pub flips_per_step: f64,
     /// Flip-rate factor per frame of age (default [`DEFAULT_DECAY`]).
     pub decay: f64,
+}
+
+/// The most `mcmc` proposals (steps, and burn-in): 100× the default of a 5 000-candidate
+/// lattice, minutes of sampling at most.
+pub const MAX_MCMC_STEPS: usize = 10_000_000;
+
+impl McmcFitOptions {
+    /// Checks the counts, which need no cloud ([`MAX_MCMC_STEPS`]).
+    pub fn validate(&self) -> Result<()> {
+        if let Some(steps) = self.steps {
+            check::at_most("steps", steps, MAX_MCMC_STEPS)?;
+        }
+        if let Some(burn_in) = self.burn_in {
+            check::at_most("burn_in", burn_in, MAX_MCMC_STEPS)?;
+        }
+        Ok(())
+    }
 }
 
 impl Default for McmcFitOptions {

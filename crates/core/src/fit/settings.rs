@@ -140,12 +140,7 @@ impl McmcSettings {
             min_cos: o.min_cos,
         };
         ray.validate()?;
-        if let Some(steps) = o.steps {
-            check::at_most("steps", steps, MAX_MCMC_STEPS)?;
-        }
-        if let Some(burn_in) = o.burn_in {
-            check::at_most("burn_in", burn_in, MAX_MCMC_STEPS)?;
-        }
+        o.validate()?;
         Ok(McmcSettings {
             ray,
             prior: o.prior,
@@ -156,10 +151,6 @@ impl McmcSettings {
         })
     }
 }
-
-/// The most `mcmc` proposals (steps, and burn-in): 100× the default of a 5 000-candidate
-/// lattice, minutes of sampling at most.
-pub const MAX_MCMC_STEPS: usize = 10_000_000;
 
 /// The default `mcmc` σ is the spacing divided by this.
 const MCMC_SIGMA_PER_SPACING: f64 = 10.0;
