@@ -6,8 +6,14 @@
 //! ```text
 //! cargo run --release --example registration_bench -- [--levels 0.5,0.8,0.9,0.95]
 //!     [--seeds 20] [--inliers 100] [--translation T] [--model mesh.ply] [--scenes DIR]
-//!     [--rotation-only] [--scale LO,HI]
+//!     [--rotation-only] [--scale LO,HI] [--partial] [--clutter] [--absent]
 //! ```
+//!
+//! `--partial`: the object is seen by a depth sensor from one random viewpoint
+//! (`synth::partial_view`: self-occluded, range noise 0.3 % of the size) and `--inliers`
+//! of its pixels are kept; `--clutter` adds a plane under it and two other objects
+//! (their scan is a quarter of the outliers, the rest uniform); `--absent`: the same
+//! scenes without the object (every point an outlier; errors are then meaningless).
 //!
 //! `--translation T`: the true translation is uniform in `[-T·size, T·size]³` (size =
 //! diagonal of the model's bounding box); default 0.25. `--scale LO,HI`: the object is
@@ -19,11 +25,13 @@ use std::path::PathBuf;
 use std::str::FromStr;
 use std::time::Instant;
 
-use primfit_core::Silent;
+use primfit_core::{Pose, Silent};
 use primfit_core::atlas::MeshShape;
 use primfit_core::io;
 use primfit_core::register::{RegisterOptions, register};
-use primfit_core::synth::{RegistrationParams, asymmetric_object, registration};
+use primfit_core::synth::{
+    PartialViewParams, RegistrationParams, Scene, asymmetric_object, partial_view, registration,
+};
 use serde_json::json;
 
 fn main() {
@@ -69,16 +77,14 @@ fn main() {
     for &level in &levels {
         let outliers = (inliers as f64 * level / (1.0 - level)).round() as usize;
         for seed in first..first + seeds {
-            let params = RegistrationParams {
-                inliers,
-                outliers,
-                translation: if rotation_only { 0.0 } else { rel_t * size },
-                scale,
-                seed,
-                ..Default::default()
+            let kind = SceneKind {
+                partial: args.iter().any(|a| a == "--partial"),
+                clutter: args.iter().any(|a| a == "--clutter"),
+                absent: args.iter().any(|a| a == "--absent"),
             };
-            let scene = registration(&mesh, &params).expect("scene");
-            let truth = scene.truth[0].pose;
+            let translation = if rotation_only { 0.0 } else { rel_t * size };
+            let scene = make_scene(&mesh, kind, inliers, outliers, translation, scale, seed);
+            let truth = scene.truth.first().map_or(Pose::identity(), |t| t.pose);
             if let Some(dir) = &scenes {
                 let name = format!("scene_{level}_{seed}");
                 io::write_cloud(
@@ -99,6 +105,7 @@ fn main() {
                 translation: !rotation_only,
                 scale: scale.map(|_| (0.5, 2.0)),
                 count: Some(1),
+                min_confidence: 0.0, // every answer is logged, right or wrong
                 seed,
                 initial_particles: parsed_or(get("--initial"), d.initial_particles, "count"),
                 particles: parsed_or(get("--particles"), d.particles, "count"),
@@ -116,14 +123,35 @@ fn main() {
                 vote_bin: parsed_or(get("--vote-bin"), d.vote_bin, "fraction"),
                 vote_spacing: parsed_or(get("--vote-spacing"), d.vote_spacing, "fraction"),
                 max_rounds: parsed_or(get("--max-rounds"), d.max_rounds, "count"),
+                primitive_weight: get("--primitive-weight").map(|s| s.parse().expect("weight")),
+                search_support: parsed_or(get("--search-support"), d.search_support, "points"),
                 ..d
             };
             let (t0, c0) = (Instant::now(), cpu_seconds());
             let result = register(&scene.cloud, &mesh, &options, &Silent).expect("register");
             let seconds = t0.elapsed().as_secs_f64();
             let cpu = cpu_seconds().zip(c0).map(|(b, a)| b - a);
-            let o = &result.objects[0];
+            let Some(o) = result.objects.first() else {
+                println!(
+                    "{}",
+                    json!({"method": "primfit", "level": level, "seed": seed, "found": false,
+                        "rotation_deg": 180.0, "translation_rel": 1.0, "seconds": seconds,
+                        "cpu_seconds": cpu, "existence": 0.0})
+                );
+                continue;
+            };
             let pose = o.primitive.pose;
+            if args.iter().any(|a| a == "--diagnose") && !scene.truth.is_empty() {
+                let kernel = options.kernel_end * size;
+                let (score, _) = primfit_core::register::score_poses(
+                    &scene.cloud, &mesh, &options, &[], vec![truth, pose], kernel,
+                ).expect("score");
+                let t = primfit_core::Primitive::new(o.primitive.shape.clone(), truth);
+                let inl = options.inlier_distance * size;
+                let zt = primfit_core::register::confidence::margin(
+                    primfit_core::register::confidence::support(&scene.cloud.points, &t, inl));
+                eprintln!("diag seed {seed}: score truth {:.4} found {:.4}; margin truth {zt:.1} found {:.1}", score[0], score[1], o.margin);
+            }
             let rot = pose.rotation.angle_to(&truth.rotation).to_degrees();
             let trans = (pose.translation - truth.translation).norm() / (size * truth.scale);
             let scale_rel = (pose.scale - truth.scale).abs() / truth.scale;
@@ -136,14 +164,65 @@ fn main() {
                 (o.filter_pose.translation - truth.translation).norm() / (size * truth.scale);
             println!(
                 "{}",
-                json!({"method": "primfit", "level": level, "seed": seed, "rotation_deg": rot,
+                json!({"method": "primfit", "level": level, "seed": seed, "found": true,
+                    "present": !kind.absent, "rotation_deg": rot,
                     "translation_rel": trans, "seconds": seconds, "existence": o.existence,
-                    "inlier_share": o.inlier_share, "filter_rotation_deg": frot,
+                    "inlier_share": o.inlier_share, "margin": o.margin, "runner_up": o.runner_up_margin, "filter_rotation_deg": frot,
                     "filter_translation_rel": ftrans, "rounds": o.rounds.len(), "cpu_seconds": cpu,
                     "scale_rel": scale_rel})
             );
         }
     }
+}
+
+/// Which scenes the bench builds.
+#[derive(Clone, Copy)]
+struct SceneKind {
+    partial: bool,
+    clutter: bool,
+    absent: bool,
+}
+
+/// One bench scene: whole-surface samples (`synth::registration`) or a partial view.
+fn make_scene(
+    mesh: &MeshShape,
+    kind: SceneKind,
+    inliers: usize,
+    outliers: usize,
+    translation: f64,
+    scale: Option<(f64, f64)>,
+    seed: u64,
+) -> Scene {
+    if !kind.partial {
+        let params = RegistrationParams {
+            inliers: if kind.absent { 0 } else { inliers },
+            outliers,
+            translation,
+            scale,
+            seed,
+            ..Default::default()
+        };
+        let mut scene = registration(mesh, &params).expect("scene");
+        if kind.absent {
+            scene.truth.clear();
+        }
+        return scene;
+    }
+    let (lo, hi) = primfit_core::bounds_of(&mesh.mesh.vertices).expect("vertices");
+    let structured = if kind.clutter { outliers / 4 } else { 0 };
+    let params = PartialViewParams {
+        inliers,
+        outliers: outliers - structured,
+        clutter_points: structured,
+        plane: kind.clutter,
+        distractors: if kind.clutter { 2 } else { 0 },
+        object: !kind.absent,
+        translation,
+        range_noise: 0.003 * (hi - lo).norm(),
+        seed,
+        ..Default::default()
+    };
+    partial_view(mesh, &params).expect("scene")
 }
 
 /// User + system CPU time of this process so far (Linux `/proc/self/stat`; `None`

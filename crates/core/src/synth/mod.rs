@@ -31,6 +31,7 @@ mod common;
 mod depth;
 mod hallway;
 mod nine;
+mod partial_view;
 mod pipe;
 mod registration;
 mod room;
@@ -45,6 +46,7 @@ pub use common::{
 pub use depth::{SensorParams, depth_sensor, look_at, orbit_poses, walk_poses};
 pub use hallway::{HallwayParams, hallway};
 pub use nine::{NineCylinderParams, nine_cylinders, nine_cylinders_candidates};
+pub use partial_view::{PartialViewParams, partial_view};
 pub use pipe::{PipeParams, pipe};
 pub use registration::{RegistrationParams, asymmetric_object, registration};
 pub use room::{Furniture, RoomGeometry, Tube};
