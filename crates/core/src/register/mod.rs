@@ -228,10 +228,13 @@ pub fn register(
     let wanted = options.count.unwrap_or(options.max_objects);
     progress.start("register", (wanted * options.max_rounds) as u64);
     let mut objects: Vec<FoundObject> = Vec::new();
+    // The points no object found so far explains: each new object's margin is measured
+    // on them, so a second copy of a found object has no support.
+    let mut unexplained = cloud.points.clone();
     for _ in 0..wanted {
         let found: Vec<Pose> = objects.iter().map(|o| o.primitive.pose).collect();
         let filtered = context.run(&found, &mut rng, progress)?;
-        let object = settle_object(&context, cloud, mesh, &flips, filtered);
+        let object = settle_object(&context, cloud, &unexplained, mesh, &flips, filtered);
         if object.existence < options.min_confidence {
             if options.count.is_none() {
                 break;
@@ -239,6 +242,8 @@ pub fn register(
             // Asked for `count` objects: keep searching, but do not report this one.
             continue;
         }
+        let inlier = options.inlier_distance * size * object.primitive.pose.scale;
+        unexplained.retain(|y| object.primitive.distance(y) > inlier);
         objects.push(object);
     }
     progress.finish();
@@ -252,11 +257,13 @@ pub fn register(
 /// The object the filter's answer `filtered` stands for: each of its symmetry tries
 /// ([`symmetry_tries`]) refined by trimmed ICP against the exact surface
 /// ([`refine_object`]), the one with the largest margin over the outlier-only
-/// explanation kept ([`confidence`]), with its calibrated existence (which also weighs
-/// how close the best other try came).
+/// explanation of the points `unexplained` by the objects found before kept
+/// ([`confidence`]), with its calibrated existence (which also weighs how close the
+/// best other try came).
 fn settle_object(
     context: &Context,
     cloud: &PointCloud,
+    unexplained: &[Point3<f64>],
     mesh: &MeshShape,
     flips: &[Pose],
     filtered: FilterResult,
@@ -269,7 +276,7 @@ fn settle_object(
         .iter()
         .map(|t| {
             let refined = refine_object(context, cloud, mesh, *t, kernel, scale);
-            let margin = margin_of(context, cloud, &refined.pose);
+            let margin = margin_of(context, unexplained, &refined.pose);
             (refined, margin)
         })
         .collect();
@@ -305,12 +312,12 @@ fn same_pose(context: &Context, a: &Pose, b: &Pose) -> bool {
 /// Rotations closer than this (degrees) are one answer (see [`same_pose`]).
 const SAME_ROTATION_DEG: f64 = 5.0;
 
-/// The margin of the mesh at `pose` over the outlier-only explanation
+/// The margin of the mesh at `pose` over the outlier-only explanation of `points`
 /// ([`confidence::margin`]) at the inlier distance.
-fn margin_of(context: &Context, cloud: &PointCloud, pose: &Pose) -> f64 {
+fn margin_of(context: &Context, points: &[Point3<f64>], pose: &Pose) -> f64 {
     let primitive = Primitive::new(context.shape.clone(), *pose);
     let inlier = context.options.inlier_distance * context.size * pose.scale;
-    confidence::margin(confidence::support(&cloud.points, &primitive, inlier))
+    confidence::margin(confidence::support(points, &primitive, inlier))
 }
 
 /// Approximate symmetries: the filter's best pose turned by π about each principal
