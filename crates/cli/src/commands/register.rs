@@ -29,7 +29,8 @@ pub struct RegisterArgs {
     /// Seed for every random choice.
     #[arg(long, default_value_t = 0)]
     pub seed: u64,
-    /// Find exactly K objects [default: as many as exist].
+    /// Search for K objects (those below --min-confidence are not reported) [default:
+    /// as many as exist].
     #[arg(long, value_name = "K")]
     pub count: Option<usize>,
     /// Estimate the rotation only, about the mesh's origin placed at `--at` (by default

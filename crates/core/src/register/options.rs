@@ -20,7 +20,9 @@ pub struct RegisterOptions {
     pub fixed_translation: Vector3<f64>,
     /// Estimate a uniform scale within this range (`None` = scale 1).
     pub scale: Option<(f64, f64)>,
-    /// Find exactly this many objects; `None` = as many as exist (at most `max_objects`).
+    /// Search for this many objects, one after another (those below
+    /// [`RegisterOptions::min_confidence`] are searched for but not reported); `None` =
+    /// as many as exist (at most `max_objects`).
     pub count: Option<usize>,
     /// Upper bound on the objects found automatically.
     pub max_objects: usize,
