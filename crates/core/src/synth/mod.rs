@@ -6,7 +6,8 @@
 //! lives, so a test can build the matching candidate set.
 //!
 //! [`depth_sensor`] instead ray-casts a truth from sensor poses (multi-frame scans with
-//! sensor origins, for the ray likelihood). [`room`] is a furnished room whose truth is
+//! sensor origins, for the ray likelihood); [`partial_view`] uses it for registration
+//! scenes seen from one viewpoint (a mesh's near side among clutter). [`room`] is a furnished room whose truth is
 //! its visible faces as bounded planes and its tubes as cylinders, seen area-uniformly
 //! or by a depth camera with quantised depth ([`RoomScene`]; not a lattice scene).
 //!
