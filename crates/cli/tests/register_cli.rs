@@ -176,8 +176,23 @@ fn register_defaults_to_the_full_pose_on_a_partial_view() {
     io::write_mesh(&model, &asymmetric_object().mesh, None, Encoding::Ascii).unwrap();
     let (scene, truth) = (dir.join("view.ply"), dir.join("truth.json"));
     let status = primfit()
-        .args(["--quiet", "synth", "partial-view", "--seed", "1", "--translation", "0.3"])
-        .args(["--inliers", "200", "--outliers", "600", "--clutter-points", "200"])
+        .args([
+            "--quiet",
+            "synth",
+            "partial-view",
+            "--seed",
+            "1",
+            "--translation",
+            "0.3",
+        ])
+        .args([
+            "--inliers",
+            "200",
+            "--outliers",
+            "600",
+            "--clutter-points",
+            "200",
+        ])
         .args(["--plane", "--distractors", "2", "--jitter", "0.004"])
         .arg("-o")
         .arg(&scene)
@@ -208,7 +223,11 @@ fn register_defaults_to_the_full_pose_on_a_partial_view() {
             .unwrap()
     };
     let out = register(&[]);
-    assert!(out.status.success(), "{}", String::from_utf8_lossy(&out.stderr));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
     let doc = read(&result);
     let list = doc["primitives"].as_array().unwrap();
     assert_eq!(list.len(), 1, "{list:?}");
@@ -228,7 +247,10 @@ fn register_defaults_to_the_full_pose_on_a_partial_view() {
         let out = register(bad);
         assert!(!out.status.success(), "{bad:?}");
         let err = String::from_utf8_lossy(&out.stderr);
-        assert!(err.contains("confidence") || err.contains("rotation-only"), "{err}");
+        assert!(
+            err.contains("confidence") || err.contains("rotation-only"),
+            "{err}"
+        );
     }
     std::fs::remove_dir_all(&dir).ok();
 }

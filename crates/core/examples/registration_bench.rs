@@ -25,13 +25,13 @@ use std::path::PathBuf;
 use std::str::FromStr;
 use std::time::Instant;
 
-use primfit_core::{Pose, Silent};
 use primfit_core::atlas::MeshShape;
 use primfit_core::io;
 use primfit_core::register::{RegisterOptions, register};
 use primfit_core::synth::{
     PartialViewParams, RegistrationParams, Scene, asymmetric_object, partial_view, registration,
 };
+use primfit_core::{Pose, Silent};
 use serde_json::json;
 
 fn main() {
@@ -144,13 +144,23 @@ fn main() {
             if args.iter().any(|a| a == "--diagnose") && !scene.truth.is_empty() {
                 let kernel = options.kernel_end * size;
                 let (score, _) = primfit_core::register::score_poses(
-                    &scene.cloud, &mesh, &options, &[], vec![truth, pose], kernel,
-                ).expect("score");
+                    &scene.cloud,
+                    &mesh,
+                    &options,
+                    &[],
+                    vec![truth, pose],
+                    kernel,
+                )
+                .expect("score");
                 let t = primfit_core::Primitive::new(o.primitive.shape.clone(), truth);
                 let inl = options.inlier_distance * size;
                 let zt = primfit_core::register::confidence::margin(
-                    primfit_core::register::confidence::support(&scene.cloud.points, &t, inl));
-                eprintln!("diag seed {seed}: score truth {:.4} found {:.4}; margin truth {zt:.1} found {:.1}", score[0], score[1], o.margin);
+                    primfit_core::register::confidence::support(&scene.cloud.points, &t, inl),
+                );
+                eprintln!(
+                    "diag seed {seed}: score truth {:.4} found {:.4}; margin truth {zt:.1} found {:.1}",
+                    score[0], score[1], o.margin
+                );
             }
             let rot = pose.rotation.angle_to(&truth.rotation).to_degrees();
             let trans = (pose.translation - truth.translation).norm() / (size * truth.scale);

@@ -81,8 +81,14 @@ fn check(outliers: usize, clutter: bool, seeds: &[u64]) {
         assert_eq!(found.len(), 1, "seed {seed}: {found:?}");
         let (rot, trans, existence) = found[0];
         assert!(rot < MAX_ROTATION_DEG, "seed {seed}: rotation {rot:.2}°");
-        assert!(trans < MAX_TRANSLATION_REL, "seed {seed}: translation {trans:.4}");
-        assert!((0.5..=0.99).contains(&existence), "seed {seed}: {existence}");
+        assert!(
+            trans < MAX_TRANSLATION_REL,
+            "seed {seed}: translation {trans:.4}"
+        );
+        assert!(
+            (0.5..=0.99).contains(&existence),
+            "seed {seed}: {existence}"
+        );
     }
 }
 

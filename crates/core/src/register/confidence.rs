@@ -82,7 +82,13 @@ pub fn margin(support: Support) -> f64 {
         return 0.0;
     }
     let p0 = 1.0 / SHELL_FACTOR;
-    let term = |x: f64, expected: f64| if x > 0.0 { x * (x / expected).ln() } else { 0.0 };
+    let term = |x: f64, expected: f64| {
+        if x > 0.0 {
+            x * (x / expected).ln()
+        } else {
+            0.0
+        }
+    };
     let g = 2.0 * (term(k, n * p0) + term(s, n * (1.0 - p0)));
     g.max(0.0).sqrt() * (k - n * p0).signum()
 }
@@ -107,7 +113,11 @@ mod tests {
 
     fn uniform(n: usize, half: f64, rng: &mut ChaCha8Rng) -> Vec<Point3<f64>> {
         (0..n)
-            .map(|_| Point3::from(Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * half)))
+            .map(|_| {
+                Point3::from(Vector3::from_fn(|_, _| {
+                    (2.0 * rng.random::<f64>() - 1.0) * half
+                }))
+            })
             .collect()
     }
 
@@ -135,7 +145,10 @@ mod tests {
     #[test]
     fn margin_matches_brute_force_likelihood_ratio() {
         // k = 30 of n = 60 with p0 = 1/4: G = 2 (30 ln 2 + 30 ln(30/45)).
-        let z = margin(Support { near: 30, shell: 30 });
+        let z = margin(Support {
+            near: 30,
+            shell: 30,
+        });
         let g = 2.0 * (30.0 * 2f64.ln() + 30.0 * (30.0f64 / 45.0).ln());
         assert!((z - g.sqrt()).abs() < 1e-12);
         assert!(margin(Support { near: 5, shell: 30 }) < 0.0);

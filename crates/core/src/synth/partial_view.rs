@@ -234,9 +234,10 @@ pub fn partial_view(mesh: &MeshShape, params: &PartialViewParams) -> Result<Scen
     let keep = subset(around.len(), params.clutter_points, &mut rng);
     points.extend(keep.iter().map(|&i| around[i]));
     let half = params.outlier_box * r;
-    points.extend((0..params.outliers).map(|_| {
-        centre + Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * half)
-    }));
+    points.extend(
+        (0..params.outliers)
+            .map(|_| centre + Vector3::from_fn(|_, _| (2.0 * rng.random::<f64>() - 1.0) * half)),
+    );
     let mut cloud = PointCloud::from_points(points);
     cloud.sensors = Some(vec![eye; cloud.len()]);
     Ok(Scene {
