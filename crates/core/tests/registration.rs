@@ -170,6 +170,7 @@ fn scale_is_recovered_with_the_full_pose() {
             translation: true,
             scale: Some((0.5, 2.0)),
             count: Some(1),
+            min_confidence: 0.0, // the pose is checked here, the existence elsewhere
             seed,
             ..Default::default()
         };
@@ -213,6 +214,7 @@ fn scale_is_recovered_with_the_rotation() {
     )
     .unwrap();
     let options = RegisterOptions {
+        translation: false, // rotation only
         scale: Some((0.5, 2.0)),
         count: Some(1),
         seed: 3,
