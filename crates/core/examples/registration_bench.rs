@@ -86,47 +86,9 @@ fn main() {
             let scene = make_scene(&mesh, kind, inliers, outliers, translation, scale, seed);
             let truth = scene.truth.first().map_or(Pose::identity(), |t| t.pose);
             if let Some(dir) = &scenes {
-                let name = format!("scene_{level}_{seed}");
-                io::write_cloud(
-                    &dir.join(format!("{name}.ply")),
-                    &scene.cloud,
-                    io::Encoding::BinaryLittleEndian,
-                )
-                .expect("scene");
-                let t = truth.translation;
-                let r = truth.rotation.to_rotation_matrix();
-                let doc = json!({"level": level, "seed": seed, "size": size,
-                    "translation": [t.x, t.y, t.z],
-                    "rotation_matrix": r.matrix().row_iter().map(|row| row.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>()});
-                io::write_json_atomic(&dir.join(format!("{name}.json")), &doc).expect("truth");
+                write_scene(dir, &format!("scene_{level}_{seed}"), &scene, &truth, size);
             }
-            let d = RegisterOptions::default();
-            let options = RegisterOptions {
-                translation: !rotation_only,
-                scale: scale.map(|_| (0.5, 2.0)),
-                count: Some(1),
-                min_confidence: 0.0, // every answer is logged, right or wrong
-                seed,
-                initial_particles: parsed_or(get("--initial"), d.initial_particles, "count"),
-                particles: parsed_or(get("--particles"), d.particles, "count"),
-                kernel_start: parsed_or(get("--kernel-start"), d.kernel_start, "fraction"),
-                kernel_shrink: parsed_or(get("--kernel-shrink"), d.kernel_shrink, "factor"),
-                kernel_end: parsed_or(get("--kernel-end"), d.kernel_end, "fraction"),
-                ess: parsed_or(get("--ess"), d.ess, "share"),
-                local_moves: parsed_or(get("--local-moves"), d.local_moves, "count"),
-                translation_spread: parsed_or(get("--tspread"), d.translation_spread, "factor"),
-                screen: get("--screen").map(|s| s.parse().expect("count")),
-                vote_peaks: parsed_or(get("--vote-peaks"), d.vote_peaks, "count"),
-                basin_share: parsed_or(get("--basin-share"), d.basin_share, "share"),
-                flip_moves: parsed_or(get("--flip-moves"), d.flip_moves, "count"),
-                vote_keep: parsed_or(get("--vote-keep"), d.vote_keep, "count"),
-                vote_bin: parsed_or(get("--vote-bin"), d.vote_bin, "fraction"),
-                vote_spacing: parsed_or(get("--vote-spacing"), d.vote_spacing, "fraction"),
-                max_rounds: parsed_or(get("--max-rounds"), d.max_rounds, "count"),
-                primitive_weight: get("--primitive-weight").map(|s| s.parse().expect("weight")),
-                search_support: parsed_or(get("--search-support"), d.search_support, "points"),
-                ..d
-            };
+            let options = options(&get, rotation_only, scale, seed);
             let (t0, c0) = (Instant::now(), cpu_seconds());
             let result = register(&scene.cloud, &mesh, &options, &Silent).expect("register");
             let seconds = t0.elapsed().as_secs_f64();
@@ -141,27 +103,6 @@ fn main() {
                 continue;
             };
             let pose = o.primitive.pose;
-            if args.iter().any(|a| a == "--diagnose") && !scene.truth.is_empty() {
-                let kernel = options.kernel_end * size;
-                let (score, _) = primfit_core::register::score_poses(
-                    &scene.cloud,
-                    &mesh,
-                    &options,
-                    &[],
-                    vec![truth, pose],
-                    kernel,
-                )
-                .expect("score");
-                let t = primfit_core::Primitive::new(o.primitive.shape.clone(), truth);
-                let inl = options.inlier_distance * size;
-                let zt = primfit_core::register::confidence::margin(
-                    primfit_core::register::confidence::support(&scene.cloud.points, &t, inl),
-                );
-                eprintln!(
-                    "diag seed {seed}: score truth {:.4} found {:.4}; margin truth {zt:.1} found {:.1}",
-                    score[0], score[1], o.margin
-                );
-            }
             let rot = pose.rotation.angle_to(&truth.rotation).to_degrees();
             let trans = (pose.translation - truth.translation).norm() / (size * truth.scale);
             let scale_rel = (pose.scale - truth.scale).abs() / truth.scale;
@@ -183,6 +124,63 @@ fn main() {
             );
         }
     }
+}
+
+/// The registration options of one run: the defaults with `count = 1`, every answer
+/// reported (`min_confidence = 0`), and the tuning flags given.
+fn options(
+    get: &dyn Fn(&str) -> Option<String>,
+    rotation_only: bool,
+    scale: Option<(f64, f64)>,
+    seed: u64,
+) -> RegisterOptions {
+    let d = RegisterOptions::default();
+    RegisterOptions {
+        translation: !rotation_only,
+        scale: scale.map(|_| (0.5, 2.0)),
+        count: Some(1),
+        min_confidence: 0.0, // every answer is logged, right or wrong
+        seed,
+        initial_particles: parsed_or(get("--initial"), d.initial_particles, "count"),
+        particles: parsed_or(get("--particles"), d.particles, "count"),
+        kernel_start: parsed_or(get("--kernel-start"), d.kernel_start, "fraction"),
+        kernel_shrink: parsed_or(get("--kernel-shrink"), d.kernel_shrink, "factor"),
+        kernel_end: parsed_or(get("--kernel-end"), d.kernel_end, "fraction"),
+        ess: parsed_or(get("--ess"), d.ess, "share"),
+        local_moves: parsed_or(get("--local-moves"), d.local_moves, "count"),
+        translation_spread: parsed_or(get("--tspread"), d.translation_spread, "factor"),
+        screen: get("--screen").map(|s| s.parse().expect("count")),
+        vote_peaks: parsed_or(get("--vote-peaks"), d.vote_peaks, "count"),
+        basin_share: parsed_or(get("--basin-share"), d.basin_share, "share"),
+        flip_moves: parsed_or(get("--flip-moves"), d.flip_moves, "count"),
+        vote_keep: parsed_or(get("--vote-keep"), d.vote_keep, "count"),
+        vote_bin: parsed_or(get("--vote-bin"), d.vote_bin, "fraction"),
+        vote_spacing: parsed_or(get("--vote-spacing"), d.vote_spacing, "fraction"),
+        max_rounds: parsed_or(get("--max-rounds"), d.max_rounds, "count"),
+        primitive_weight: get("--primitive-weight").map(|s| s.parse().expect("weight")),
+        search_support: parsed_or(get("--search-support"), d.search_support, "points"),
+        ..d
+    }
+}
+
+/// Writes `scene`'s cloud (`name.ply`) and its truth `truth` (`name.json`: the pose
+/// and the model size `size`) to `dir`.
+fn write_scene(dir: &std::path::Path, name: &str, scene: &Scene, truth: &Pose, size: f64) {
+    io::write_cloud(
+        &dir.join(format!("{name}.ply")),
+        &scene.cloud,
+        io::Encoding::BinaryLittleEndian,
+    )
+    .expect("scene");
+    let t = truth.translation;
+    let r = truth.rotation.to_rotation_matrix();
+    let rows: Vec<Vec<f64>> = r
+        .matrix()
+        .row_iter()
+        .map(|row| row.iter().copied().collect())
+        .collect();
+    let doc = json!({"size": size, "translation": [t.x, t.y, t.z], "rotation_matrix": rows});
+    io::write_json_atomic(&dir.join(format!("{name}.json")), &doc).expect("truth");
 }
 
 /// Which scenes the bench builds.
