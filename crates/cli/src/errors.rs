@@ -7,6 +7,8 @@ use primfit_core::Error;
 /// sets each. The library names options by their fields and never by a flag; a name
 /// that no flag sets is printed as it is.
 const FLAGS: &[(&str, &str)] = &[
+    // every command
+    ("threads", "-j/--threads"),
     // fit
     ("kinds", "--types"),
     ("size", "--size"),
@@ -22,6 +24,7 @@ const FLAGS: &[(&str, &str)] = &[
     ("point_weight", "--weights"),
     ("max_iterations", "--max-iterations"),
     ("search_points", "--search-points"),
+    ("work_budget", "--work-budget"),
     ("rounds", "--refine-rounds"),
     ("mesh_model", "--mesh-model"),
     ("steps", "--steps"),

@@ -50,15 +50,37 @@ enum Command {
     View(commands::view::ViewArgs),
 }
 
+/// On SIGINT or SIGTERM: remove the temporary files of any write in progress (the
+/// outputs stay as they were) and end with the shell's status for that signal,
+/// 128 + its number.
+fn remove_temporary_files_on_signals() {
+    use signal_hook::consts::{SIGINT, SIGTERM};
+    let Ok(mut signals) = signal_hook::iterator::Signals::new([SIGINT, SIGTERM]) else {
+        return; // Without the handler the default action still ends the process.
+    };
+    std::thread::spawn(move || {
+        if let Some(signal) = signals.forever().next() {
+            primfit_core::io::remove_temporary_files();
+            std::process::exit(128 + signal);
+        }
+    });
+}
+
 fn main() -> ExitCode {
     let cli = Cli::parse();
-    if let Some(n) = cli.threads
-        && let Err(e) = rayon::ThreadPoolBuilder::new()
-            .num_threads(n)
-            .build_global()
-    {
-        eprintln!("error: cannot start {n} threads: {e}");
-        return ExitCode::FAILURE;
+    remove_temporary_files_on_signals();
+    if let Some(n) = cli.threads {
+        let started = primfit_core::budget::check_threads("threads", n)
+            .map_err(|e| errors::one_line(&e.into()))
+            .and_then(|n| {
+                let pool = rayon::ThreadPoolBuilder::new().num_threads(n);
+                pool.build_global()
+                    .map_err(|e| format!("cannot start {n} threads: {e}"))
+            });
+        if let Err(e) = started {
+            eprintln!("error: {e}");
+            return ExitCode::FAILURE;
+        }
     }
     let out = commands::Output {
         quiet: cli.quiet,

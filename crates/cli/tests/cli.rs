@@ -3,98 +3,21 @@
 //! clobbered output), the synth → fit → eval round trip, determinism, and terminal
 //! behaviour. Every run sets `RUST_BACKTRACE=1` and checks that nothing panicked.
 
-use std::collections::BTreeSet;
 use std::fs;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
 use serde_json::Value;
+
+mod common;
+use common::{fails, file_names, ok, primfit, temp_dir, texts};
 
 // ---------------------------------------------------------------------------------------
 // Running the binary
 // ---------------------------------------------------------------------------------------
 
-/// A fresh, empty folder for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("primfit-cli-{}-{name}", std::process::id()));
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).expect("create temp dir");
-    dir
-}
-
-/// Runs `primfit ARGS` in `dir` with piped stdout and stderr.
-fn primfit(dir: &Path, args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_primfit"))
-        .args(args)
-        .current_dir(dir)
-        .env("RUST_BACKTRACE", "1")
-        .env("NO_COLOR", "1")
-        .output()
-        .expect("run primfit");
-    let (stdout, stderr) = texts(&out);
-    for text in [&stdout, &stderr] {
-        assert!(
-            !text.contains("panicked") && !text.contains("stack backtrace"),
-            "primfit {args:?} panicked:\n{text}"
-        );
-    }
-    out
-}
-
-fn texts(out: &Output) -> (String, String) {
-    (
-        String::from_utf8_lossy(&out.stdout).into_owned(),
-        String::from_utf8_lossy(&out.stderr).into_owned(),
-    )
-}
-
-/// Runs `primfit ARGS` and asserts success; returns (stdout, stderr).
-fn ok(dir: &Path, args: &[&str]) -> (String, String) {
-    let out = primfit(dir, args);
-    let (stdout, stderr) = texts(&out);
-    assert!(
-        out.status.success(),
-        "primfit {args:?} failed ({:?}):\n{stdout}\n{stderr}",
-        out.status.code()
-    );
-    (stdout, stderr)
-}
-
-/// Runs `primfit ARGS`, asserts exit code 1 and a single `error:` line on stderr that
-/// contains `needle` (the file or flag at fault); returns that line.
-fn fails(dir: &Path, args: &[&str], needle: &str) -> String {
-    let out = primfit(dir, args);
-    let (stdout, stderr) = texts(&out);
-    assert_eq!(
-        out.status.code(),
-        Some(1),
-        "primfit {args:?} should fail with 1:\n{stdout}\n{stderr}"
-    );
-    let errors: Vec<&str> = stderr.lines().filter(|l| l.starts_with("error:")).collect();
-    assert_eq!(errors.len(), 1, "one error line expected:\n{stderr}");
-    assert_eq!(
-        stderr.trim_end().lines().count(),
-        1,
-        "nothing but the error line expected on stderr:\n{stderr}"
-    );
-    let line = errors[0].to_string();
-    assert!(
-        line.contains(needle),
-        "the error should name {needle:?}: {line}"
-    );
-    line
-}
-
 fn read_json(path: &Path) -> Value {
     let text = fs::read_to_string(path).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
     serde_json::from_str(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()))
-}
-
-fn file_names(dir: &Path) -> BTreeSet<String> {
-    fs::read_dir(dir)
-        .expect("list dir")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect()
 }
 
 /// The PLY header of a file (up to and including `end_header`).

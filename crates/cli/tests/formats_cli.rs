@@ -3,36 +3,12 @@
 //! format fails with one `error:` line naming the file, exit code 1, nothing written.
 
 use std::fs;
-use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::path::Path;
 
 use serde_json::Value;
 
-/// A fresh, empty folder for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir =
-        std::env::temp_dir().join(format!("primfit-formats-cli-{}-{name}", std::process::id()));
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).expect("create temp dir");
-    dir
-}
-
-/// Runs `primfit ARGS` in `dir`, checking that nothing panicked.
-fn primfit(dir: &Path, args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_primfit"))
-        .args(args)
-        .current_dir(dir)
-        .env("RUST_BACKTRACE", "1")
-        .env("NO_COLOR", "1")
-        .output()
-        .expect("run primfit");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !stderr.contains("panicked"),
-        "primfit {args:?} panicked:\n{stderr}"
-    );
-    out
-}
+mod common;
+use common::{primfit, temp_dir};
 
 /// A floor (2 m × 2 m) and a wall (1 m high) every 0.125 m: exact in `float`, in
 /// decimal, and on a LAS scale of 1/1024, so every format holds the same points.

@@ -9,34 +9,12 @@
 use std::collections::BTreeSet;
 use std::fs;
 use std::path::{Path, PathBuf};
-use std::process::{Command, Output};
+use std::process::Command;
 
 use serde_json::Value;
 
-/// A fresh, empty folder for one test.
-fn temp_dir(name: &str) -> PathBuf {
-    let dir = std::env::temp_dir().join(format!("primfit-out-cli-{}-{name}", std::process::id()));
-    let _ = fs::remove_dir_all(&dir);
-    fs::create_dir_all(&dir).expect("create temp dir");
-    dir
-}
-
-/// Runs `primfit ARGS` in `dir`, checking that nothing panicked.
-fn primfit(dir: &Path, args: &[&str]) -> Output {
-    let out = Command::new(env!("CARGO_BIN_EXE_primfit"))
-        .args(args)
-        .current_dir(dir)
-        .env("RUST_BACKTRACE", "1")
-        .env("NO_COLOR", "1")
-        .output()
-        .expect("run primfit");
-    let stderr = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        !stderr.contains("panicked"),
-        "primfit {args:?} panicked:\n{stderr}"
-    );
-    out
-}
+mod common;
+use common::{file_names, primfit, temp_dir};
 
 /// Runs `primfit ARGS` and asserts success; returns stdout.
 fn ok(dir: &Path, args: &[&str]) -> String {
@@ -71,13 +49,6 @@ fn fails(dir: &Path, args: &[&str], needle: &str) {
         file_names(dir),
         "primfit {args:?} wrote or removed files"
     );
-}
-
-fn file_names(dir: &Path) -> BTreeSet<String> {
-    fs::read_dir(dir)
-        .expect("list dir")
-        .map(|e| e.expect("entry").file_name().to_string_lossy().into_owned())
-        .collect()
 }
 
 /// A floor (2 m × 2 m) and a wall (1 m high) every 0.125 m, as ascii PLY.

@@ -101,6 +101,21 @@ pub fn multiple_of(name: &str, v: f64, step: f64, step_name: &str) -> Result<()>
     }
 }
 
+/// The rotation of a quaternion `[w, x, y, z]` given in JSON or an option: finite and
+/// not zero, normalised. The components are divided by the largest first, so that
+/// `[1e308, 1e308, 0, 0]` is the rotation it names rather than an overflow to zero.
+pub fn unit_quaternion(name: &str, q: [f64; 4]) -> Result<nalgebra::UnitQuaternion<f64>> {
+    let largest = q.iter().fold(0.0_f64, |m, c| m.max(c.abs()));
+    if !(q.iter().all(|c| c.is_finite()) && largest > 0.0) {
+        let expected = "a finite, non-zero quaternion [w, x, y, z]";
+        return Err(Error::out_of_range(name, format!("{q:?}"), expected));
+    }
+    let [w, i, j, k] = q.map(|c| c / largest);
+    Ok(nalgebra::UnitQuaternion::from_quaternion(
+        nalgebra::Quaternion::new(w, i, j, k),
+    ))
+}
+
 /// How far (in steps) from a whole multiple [`multiple_of`] accepts.
 const MULTIPLE_TOLERANCE: f64 = 1e-9;
 

@@ -128,6 +128,8 @@ pub enum Error {
     },
     /// Any other invalid input, as a sentence (only where no variant above fits).
     InvalidArgument(String),
+    /// The caller stopped the work ([`crate::Progress::cancelled`]).
+    Cancelled,
 }
 
 /// What the amounts of [`Error::OverLimit`] count.
@@ -291,6 +293,7 @@ impl Error {
                 path.display()
             ),
             Error::InvalidArgument(msg) => write!(f, "invalid argument: {msg}"),
+            Error::Cancelled => f.write_str("cancelled"),
         }
     }
 }

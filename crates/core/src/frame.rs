@@ -32,7 +32,7 @@ use rand_chacha::ChaCha8Rng;
 use serde_json::Value;
 
 use crate::surface::LocalPlane;
-use crate::{Error, Primitive, Result};
+use crate::{Error, Primitive, Result, check};
 
 /// `s` of the kernel κ: normals within about this angle of an axis count (radians).
 const KERNEL_ANGLE: f64 = 10.0 * std::f64::consts::PI / 180.0;
@@ -119,11 +119,7 @@ impl FrameChoice {
                 Error::json("rotation", "[w, x, y, z] (or a result's settings.frame)")
             })?;
         let q = numbers(frame.get("rotation"), 4, "rotation")?;
-        let quaternion = nalgebra::Quaternion::new(q[0], q[1], q[2], q[3]);
-        if quaternion.norm().is_nan() || quaternion.norm() <= 1e-12 {
-            let expected = "a non-zero quaternion [w, x, y, z]";
-            return Err(Error::out_of_range("rotation", format!("{q:?}"), expected));
-        }
+        let rotation = check::unit_quaternion("rotation", [q[0], q[1], q[2], q[3]])?;
         let origin_value = match settings {
             Some(s) => s.get("origin"),
             None => v.get("origin"),
@@ -135,10 +131,7 @@ impl FrameChoice {
                 Some(Point3::new(o[0], o[1], o[2]))
             }
         };
-        Ok(FrameChoice::Given {
-            rotation: UnitQuaternion::from_quaternion(quaternion),
-            origin,
-        })
+        Ok(FrameChoice::Given { rotation, origin })
     }
 }
 

@@ -48,6 +48,7 @@
 //! | [`synth`] | synthetic scenes with ground truth |
 //! | [`metrics`] | the measures of DESIGN §4 and their parts |
 //! | [`render`] | pictures of a fit: a PNG and an interactive HTML page |
+//! | [`budget`] | up-front limits of memory, threads and work that every entry point checks before it allocates |
 //! | [`io`] | cloud readers (PLY, PCD, LAS/LAZ, E57, text), mesh writers (PLY, OBJ, GLB), atomic writes |
 //!
 //! Units: every length is in the cloud's units (metres for the bundled data); distances
@@ -126,6 +127,7 @@
 pub use nalgebra as na;
 
 pub mod atlas;
+pub mod budget;
 pub mod chamfer;
 mod check;
 mod cloud;

@@ -104,13 +104,7 @@ impl Pose {
     /// The pose of a parsed [`PoseDoc`]: the quaternion normalised (a zero one is an
     /// error), the scale positive (default 1).
     fn checked(doc: PoseDoc) -> Result<Pose> {
-        let [w, i, j, k] = doc.rotation;
-        let quaternion = nalgebra::Quaternion::new(w, i, j, k);
-        if quaternion.norm().is_nan() || quaternion.norm() <= 1e-12 {
-            let expected = "a non-zero quaternion [w, x, y, z]";
-            let value = format!("{:?}", doc.rotation);
-            return Err(Error::out_of_range("pose.rotation", value, expected));
-        }
+        let rotation = check::unit_quaternion("pose.rotation", doc.rotation)?;
         check::finite("pose.translation", &doc.translation)?;
         let scale = doc.scale.unwrap_or(1.0);
         if !(scale.is_finite() && scale > 0.0) {
@@ -121,7 +115,7 @@ impl Pose {
             ));
         }
         Ok(Pose {
-            rotation: UnitQuaternion::from_quaternion(quaternion),
+            rotation,
             translation: Vector3::from(doc.translation),
             scale,
         })

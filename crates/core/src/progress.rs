@@ -1,4 +1,7 @@
-//! [`Progress`]: how long-running stages report progress without knowing about terminals.
+//! [`Progress`]: how long-running stages report progress without knowing about terminals,
+//! and learn that the caller wants them stopped.
+
+use crate::{Error, Result};
 
 /// Receives progress of long stages. Implementations must be cheap and thread-safe:
 /// `advance` is called from rayon workers.
@@ -11,6 +14,20 @@ pub trait Progress: Sync {
     fn finish(&self) {}
     /// A one-line message for verbose output.
     fn message(&self, _text: &str) {}
+    /// Whether the caller wants the work stopped (a Ctrl-C in Python). Long stages ask
+    /// between steps ([`Progress::checkpoint`]) and end with [`Error::Cancelled`].
+    fn cancelled(&self) -> bool {
+        false
+    }
+    /// [`Error::Cancelled`] when [`Progress::cancelled`]: `progress.checkpoint()?` between
+    /// stages.
+    fn checkpoint(&self) -> Result<()> {
+        if self.cancelled() {
+            Err(Error::Cancelled)
+        } else {
+            Ok(())
+        }
+    }
 }
 
 /// A [`Progress`] that ignores everything.

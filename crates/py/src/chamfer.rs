@@ -5,7 +5,10 @@ use numpy::ndarray::Array2;
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
 use primfit_core::Limit;
 use primfit_core::Silent;
-use primfit_core::chamfer::{ChamferOptions, Coefficients, Evaluator, PointModel, SampleSets};
+use primfit_core::budget;
+use primfit_core::chamfer::{
+    ChamferOptions, Coefficients, Evaluator, PointModel, SampleSets, check_memory,
+};
 use primfit_core::na::Point3;
 use pyo3::prelude::*;
 use rayon::prelude::*;
@@ -97,6 +100,8 @@ pub fn chamfer_problems(
     let options = chamfer_options(model, alpha, beta, cap, weights)?;
     let coeffs = pool::detached(py, || {
         let sets = SampleSets::new(&samples, &owner, n)?;
+        let points = clouds.iter().map(Vec::len).sum();
+        check_memory(points, &sets, &options, budget::default_memory_budget())?;
         clouds
             .par_iter()
             .map(|cloud| Coefficients::build(cloud, &sets, &options, &Silent))
@@ -128,6 +133,12 @@ impl ChamferProblem {
         let options = chamfer_options(model, alpha, beta, cap, weights)?;
         let coeffs = pool::detached(py, || {
             let sets = SampleSets::new(&samples, &owner, n)?;
+            check_memory(
+                cloud.len(),
+                &sets,
+                &options,
+                budget::default_memory_budget(),
+            )?;
             Coefficients::build(&cloud, &sets, &options, &Silent)
         })?
         .py()?;

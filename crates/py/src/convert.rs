@@ -11,7 +11,7 @@ use numpy::ndarray::{ArrayView1, ArrayView2, Axis};
 use numpy::{PyReadonlyArray1, PyReadonlyArray2, PyUntypedArrayMethods};
 use primfit_core::na::Point3;
 use primfit_core::{Error, Limit, TriMesh};
-use pyo3::exceptions::{PyOSError, PyValueError};
+use pyo3::exceptions::{PyKeyboardInterrupt, PyOSError, PyValueError};
 use pyo3::prelude::*;
 use pyo3::types::PyString;
 
@@ -24,6 +24,8 @@ pub fn to_py(e: Error) -> PyErr {
     let message = e.to_string();
     match e.root() {
         Error::Io { .. } => PyOSError::new_err(message),
+        // The work stopped because Ctrl-C was pressed (`pool::cancellable`).
+        Error::Cancelled => PyKeyboardInterrupt::new_err(message),
         Error::OutOfRange { .. }
         | Error::Unknown { .. }
         | Error::EmptyCloud

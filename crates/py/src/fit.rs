@@ -4,15 +4,13 @@
 use std::path::PathBuf;
 
 use numpy::{IntoPyArray, PyArray1, PyArray2, PyReadonlyArray1, PyReadonlyArray2};
-use primfit_core::PointIndex;
 use primfit_core::Silent;
 use primfit_core::atlas::{MeshShape, ShapeKind};
-use primfit_core::chamfer::{CandidateGeometry, Coefficients, PointModel};
+use primfit_core::chamfer::PointModel;
 use primfit_core::fit::FrameChoice;
 use primfit_core::fit::{
-    self as core_fit, FitOptions, FitResult, McmcFitOptions, MethodOptions, Settings, parse_types,
+    self as core_fit, FitOptions, FitResult, McmcFitOptions, MethodOptions, parse_types,
 };
-use primfit_core::lattice::CandidateSet;
 use primfit_core::metrics::{self, MetricsOptions};
 use primfit_core::na::Point3;
 use primfit_core::refine::RefineOptions;
@@ -50,7 +48,8 @@ impl PyFitOptions {
         refine=None, refine_rounds=None, sample_spacing=None, model=None, alpha=None, beta=None,
         cap=None, weights=None, method=None, steps=None, burn_in=None, noise_rate=None,
         sigma=None, prior=None, parameterization=None, max_iterations=None, search_points=None,
-        polish=None, seed=None, mesh_model=None, memory_budget=None
+        polish=None, seed=None, mesh_model=None, memory_budget=None,
+        work_budget=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -83,6 +82,7 @@ impl PyFitOptions {
         seed: Option<u64>,
         mesh_model: Option<&Bound<'_, PyAny>>,
         memory_budget: Option<u64>,
+        work_budget: Option<f64>,
     ) -> PyResult<Self> {
         let d = FitOptions::default();
         let weights = convert::floats::<2>("weights", weights)?;
@@ -127,6 +127,7 @@ impl PyFitOptions {
             },
             method: method_options(method, mcmc)?.unwrap_or(d.method),
             memory_budget,
+            work_budget,
             seed: seed.unwrap_or(d.seed),
         }))
     }
@@ -259,8 +260,8 @@ pub fn fit<'py>(
     sensors: Option<PyReadonlyArray2<'py, f64>>,
 ) -> PyResult<(String, Bound<'py, PyArray1<f64>>)> {
     let cloud = cloud_arrays(cloud, normals, None, labels, sensors, false)?;
-    let (doc, existence) = pool::detached(py, || -> Result<_> {
-        let result = core_fit::fit(&cloud, &options.0, &Silent)?;
+    let (doc, existence) = pool::cancellable(py, |interrupt| -> Result<_> {
+        let result = core_fit::fit(&cloud, &options.0, interrupt)?;
         let m = metrics::evaluate(
             &cloud.points,
             &result.primitives,
@@ -302,15 +303,9 @@ pub fn candidates<'py>(
 ) -> PyResult<CandidateArrays<'py>> {
     let cloud = PointCloud::from_points(convert::points("cloud", &cloud, false)?);
     let (settings, samples, owner, primitives) = pool::detached(py, || -> Result<_> {
-        let index = PointIndex::new(&cloud.points);
-        let settings = Settings::resolve(&cloud, &index, &options.0)?;
-        let set = CandidateSet::build(&settings.lattice(), &cloud)?;
-        let (mut samples, mut owner, mut buf) = (Vec::new(), Vec::new(), Vec::new());
-        for i in 0..set.len() {
-            set.scene_samples(i, &mut buf);
-            samples.extend_from_slice(&buf);
-            owner.extend(std::iter::repeat_n(i as i64, buf.len()));
-        }
+        let (settings, set) = core_fit::fit_candidates(&cloud, &options.0)?;
+        let (samples, owner) = core_fit::candidate_samples(&set, settings.memory_budget)?;
+        let owner: Vec<i64> = owner.into_iter().map(|o| o as i64).collect();
         let primitives: Vec<_> = (0..set.len()).map(|i| set.primitive(i).to_json()).collect();
         Ok((
             settings.to_json(),
@@ -337,11 +332,8 @@ pub fn fit_problem(
     options: &PyFitOptions,
 ) -> PyResult<ChamferProblem> {
     let cloud = PointCloud::from_points(convert::points("cloud", &cloud, false)?);
-    let coeffs = pool::detached(py, || -> Result<_> {
-        let index = PointIndex::new(&cloud.points);
-        let settings = Settings::resolve(&cloud, &index, &options.0)?;
-        let set = CandidateSet::build(&settings.lattice(), &cloud)?;
-        Coefficients::build(&cloud.points, &set, &settings.chamfer, &Silent)
+    let coeffs = pool::detached(py, || {
+        core_fit::fit_problem(&cloud, &options.0, &Silent).map(|(_, coefficients)| coefficients)
     })?
     .py()?;
     Ok(coeffs.into())

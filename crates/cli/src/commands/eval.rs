@@ -5,12 +5,11 @@ use std::path::{Path, PathBuf};
 
 use anyhow::{Context, Result};
 use clap::Args;
-use primfit_core::io;
 use primfit_core::metrics::{Metrics, MetricsOptions, evaluate};
 use primfit_core::{PointCloud, Primitive};
 use serde_json::Value;
 
-use super::Output;
+use super::{Output, read_scene};
 
 /// Arguments of `primfit eval`.
 #[derive(Debug, Args)]
@@ -23,7 +22,7 @@ pub struct EvalArgs {
     #[arg(long, value_name = "truth.json")]
     pub truth: Option<PathBuf>,
     /// Coverage threshold τ in scene units [default: twice the median point spacing].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub tau: Option<f64>,
     /// Always print JSON, even on a terminal.
     #[arg(long)]
@@ -63,7 +62,7 @@ pub fn read_primitives(path: &Path) -> Result<Vec<Primitive>> {
 
 /// Runs `primfit eval`.
 pub fn run(a: EvalArgs, out: &Output) -> Result<()> {
-    let cloud = io::read_cloud(&a.scene)?;
+    let cloud = read_scene(&a.scene, out)?;
     let model = read_primitives(&a.result)?;
     let truth = a.truth.as_deref().map(read_primitives).transpose()?;
     let options = MetricsOptions {

@@ -17,7 +17,7 @@ use primfit_core::solve::{Parameterization, SolverOptions};
 use primfit_core::{Limit, chamfer::PointModel as Model};
 
 use super::sizes::SizeArgs;
-use super::{Output, check_output, parse_limit, parse_pair, parse_point};
+use super::{Output, check_output, parse_limit, parse_pair, parse_point, read_scene};
 use crate::progress::Bars;
 
 /// Arguments of `primfit fit`. Every size defaults to a value derived from the cloud
@@ -56,7 +56,7 @@ pub struct FitArgs {
     #[command(flatten)]
     pub sizes: SizeArgs,
     /// Lattice translation step [default: size / 2].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub spacing: Option<f64>,
     /// A lattice point, `x,y,z` [default: with `--frame axis` 0,0,0; otherwise chosen so
     /// that grid planes lie on the scan's main planes].
@@ -73,24 +73,24 @@ pub struct FitArgs {
     #[arg(long)]
     pub no_refine: bool,
     /// Refinement rounds (point assignment + Levenberg–Marquardt per primitive).
-    #[arg(long, default_value_t = RefineOptions::default().rounds)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = RefineOptions::default().rounds)]
     pub refine_rounds: usize,
     /// Spacing of candidate surface samples [default: min(size/16, 2π·radius/12), at least
     /// the cloud's median point spacing].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub sample_spacing: Option<f64>,
     /// Point-term model.
     #[arg(long, default_value = Model::default().name(), value_parser = ["existence", "independent"])]
     pub model: String,
     /// α: samples per candidate and point (independent model); `inf` = all.
-    #[arg(long, value_parser = parse_limit, default_value_t = FitOptions::default().alpha)]
+    #[arg(allow_hyphen_values = true, long, value_parser = parse_limit, default_value_t = FitOptions::default().alpha)]
     pub alpha: Limit,
     /// β: candidates per point; `inf` = all.
-    #[arg(long, value_parser = parse_limit, default_value_t = FitOptions::default().beta)]
+    #[arg(allow_hyphen_values = true, long, value_parser = parse_limit, default_value_t = FitOptions::default().beta)]
     pub beta: Limit,
     /// Distance whose square is the cost of an unexplained point [default: max(spacing,
     /// 5σ) with σ the scan's noise level, estimated from local plane fits].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub cap: Option<f64>,
     /// Weights of the primitive and point terms, `a,b` [default: 1,1].
     #[arg(long, value_parser = parse_pair, allow_hyphen_values = true)]
@@ -102,36 +102,40 @@ pub struct FitArgs {
     #[arg(long, default_value = Parameterization::default().name(), value_parser = ["box", "logit"])]
     pub parameterization: String,
     /// Maximum L-BFGS iterations.
-    #[arg(long, default_value_t = DEFAULT_MAX_ITERATIONS)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = DEFAULT_MAX_ITERATIONS)]
     pub max_iterations: usize,
     /// Larger clouds are solved in two phases: L-BFGS and the polish's search moves on
     /// about this many points (point term reweighted), then L-BFGS and single flips on
     /// every point. 0 = one phase on every point (slower on large clouds).
-    #[arg(long, default_value_t = DEFAULT_SEARCH_POINTS.get().unwrap_or(0))]
+    #[arg(allow_hyphen_values = true, long, default_value_t = DEFAULT_SEARCH_POINTS.get().unwrap_or(0))]
     pub search_points: usize,
+    /// Most estimated distance evaluations per point of a lattice pass; a fit over it
+    /// is refused up front [default: 2e5, about 14× the default lattice fit's].
+    #[arg(allow_hyphen_values = true, long)]
+    pub work_budget: Option<f64>,
     /// Skip the discrete polish after thresholding.
     #[arg(long)]
     pub no_polish: bool,
     /// mcmc: Metropolis–Hastings proposals after burn-in [default: max(1000, 20 × candidates)].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub steps: Option<usize>,
     /// mcmc: proposals before existence frequencies count [default: steps / 5].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub burn_in: Option<usize>,
     /// mcmc: noise returns per unit length of ray [default: 1 / bounding-box diagonal].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub noise_rate: Option<f64>,
     /// mcmc: deviation of a primitive's points along its normal [default: spacing / 10].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub sigma: Option<f64>,
     /// mcmc: prior existence probability of a candidate with nearby points.
-    #[arg(long, default_value_t = DEFAULT_PRIOR)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = DEFAULT_PRIOR)]
     pub prior: f64,
     /// Triangle mesh (PLY with faces) used by the `mesh` type.
     #[arg(long, value_name = "object.ply")]
     pub mesh_model: Option<PathBuf>,
     /// Seed for every random choice.
-    #[arg(long, default_value_t = DEFAULT_SEED)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = DEFAULT_SEED)]
     pub seed: u64,
 }
 
@@ -200,6 +204,7 @@ impl FitArgs {
             },
             method,
             memory_budget: None,
+            work_budget: self.work_budget,
             seed: self.seed,
         })
     }
@@ -236,25 +241,7 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
         bail!("{}: given both as -o and as --mesh", a.display());
     }
     let options = args.options()?;
-    let (cloud, report) = io::read_cloud_report(&args.scene)?;
-    if cloud.is_empty() && report.skipped_non_finite > 0 {
-        bail!(
-            "{}: the cloud has no points: all {} have a NaN or infinite coordinate",
-            args.scene.display(),
-            report.skipped_non_finite
-        );
-    }
-    if cloud.is_empty() {
-        bail!("{}: the cloud has no points", args.scene.display());
-    }
-    if report.skipped_non_finite > 0 && !out.quiet {
-        eprintln!(
-            "warning: {}: skipped {} of {} points with a NaN or infinite coordinate",
-            args.scene.display(),
-            report.skipped_non_finite,
-            report.vertices_in_file
-        );
-    }
+    let cloud = read_scene(&args.scene, out)?;
     if args.method == "mcmc" && cloud.sensors.is_none() {
         bail!(
             "{}: --method mcmc needs each point's sensor origin (PLY vertex properties \

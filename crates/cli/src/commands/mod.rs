@@ -3,7 +3,7 @@
 use std::path::Path;
 
 use anyhow::{Result, bail};
-use primfit_core::Limit;
+use primfit_core::{Limit, PointCloud, io};
 
 pub mod eval;
 pub mod fit;
@@ -21,6 +21,31 @@ pub struct Output {
     pub quiet: bool,
     /// Print details.
     pub verbose: bool,
+}
+
+/// Reads the scan a command works on: an error naming the file when no point is left
+/// (all of them NaN or infinite, or none at all), a warning when some were skipped.
+pub fn read_scene(path: &Path, out: &Output) -> Result<PointCloud> {
+    let (cloud, report) = io::read_cloud_report(path)?;
+    if cloud.is_empty() && report.skipped_non_finite > 0 {
+        bail!(
+            "{}: the cloud has no points: all {} have a NaN or infinite coordinate",
+            path.display(),
+            report.skipped_non_finite
+        );
+    }
+    if cloud.is_empty() {
+        bail!("{}: the cloud has no points", path.display());
+    }
+    if report.skipped_non_finite > 0 && !out.quiet {
+        eprintln!(
+            "warning: {}: skipped {} of {} points with a NaN or infinite coordinate",
+            path.display(),
+            report.skipped_non_finite,
+            report.vertices_in_file
+        );
+    }
+    Ok(cloud)
 }
 
 /// Parses a comma-separated list of three numbers (`x,y,z`).
@@ -78,6 +103,7 @@ pub fn check_output(path: &Path, inputs: &[&Path]) -> Result<()> {
             dir.display()
         );
     }
+    io::writable_target(path)?;
     for input in inputs {
         if same_file(path, input) {
             bail!(

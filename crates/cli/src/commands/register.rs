@@ -11,7 +11,7 @@ use primfit_core::io;
 use primfit_core::na::Vector3;
 use primfit_core::register::{RegisterOptions, register};
 
-use super::{Output, parse_point};
+use super::{Output, check_output, parse_point, read_scene};
 use crate::progress::Bars;
 
 /// Arguments of `primfit register`. Relative sizes are fractions of the model size (the
@@ -27,11 +27,11 @@ pub struct RegisterArgs {
     #[arg(short, long, value_name = "result.json")]
     pub output: Option<PathBuf>,
     /// Seed for every random choice.
-    #[arg(long, default_value_t = 0)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 0)]
     pub seed: u64,
     /// Search for K objects (those below --min-confidence are not reported) [default:
     /// as many as exist].
-    #[arg(long, value_name = "K")]
+    #[arg(allow_hyphen_values = true, long, value_name = "K")]
     pub count: Option<usize>,
     /// Estimate the rotation only, about the mesh's origin placed at `--at` (by default
     /// the full pose: rotation and translation).
@@ -45,7 +45,7 @@ pub struct RegisterArgs {
     pub at: Option<[f64; 3]>,
     /// Report only objects whose calibrated existence (the probability that the object
     /// is there at that pose) is at least this, in 0..1.
-    #[arg(long, value_name = "P")]
+    #[arg(allow_hyphen_values = true, long, value_name = "P")]
     pub min_confidence: Option<f64>,
     /// Also estimate a uniform scale, within `--scale-range`.
     #[arg(long)]
@@ -59,19 +59,19 @@ pub struct RegisterArgs {
     )]
     pub scale_range: Vec<f64>,
     /// Particles of the first round.
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub initial_particles: Option<usize>,
     /// Particles of later rounds.
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub particles: Option<usize>,
     /// Round limit per object.
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub max_rounds: Option<usize>,
     /// Points an object must explain beyond clutter to exist.
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub min_support: Option<f64>,
     /// Inlier distance, fraction of the model size.
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub inlier_distance: Option<f64>,
     /// Skip the final ICP refinement.
     #[arg(long)]
@@ -109,14 +109,14 @@ impl RegisterArgs {
 /// Runs `primfit register`.
 pub fn run(args: RegisterArgs, out: &Output) -> Result<()> {
     let options = args.options()?;
+    if let Some(path) = &args.output {
+        check_output(path, &[&args.scene, &args.model])?;
+    }
     let mesh = MeshShape::new(
         args.model.display().to_string(),
         io::read_mesh(&args.model)?,
     )?;
-    let cloud = io::read_cloud(&args.scene)?;
-    if cloud.is_empty() {
-        bail!("{}: the cloud has no points", args.scene.display());
-    }
+    let cloud = read_scene(&args.scene, out)?;
     let bars = Bars::new(out.quiet, out.verbose);
     let result = register(&cloud, &mesh, &options, &bars)
         .with_context(|| format!("registering {}", args.scene.display()))?;

@@ -30,7 +30,7 @@ pub struct RenderArgs {
     pub size: String,
     /// Distance (scene units) at the top of the points' colour scale [default: the 95th
     /// percentile of the drawn points' distances to the model].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub scale: Option<f64>,
 }
 

@@ -8,13 +8,13 @@ use clap::Args;
 #[derive(Debug, Clone, Copy, Args)]
 pub struct SizeArgs {
     /// Main extent in scene units: square side, disk/sphere diameter, cylinder length.
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub size: Option<f64>,
     /// Tube radius of cylinders and elbows.
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub radius: Option<f64>,
     /// Elbow bend radius (centre line).
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub bend: Option<f64>,
 }
 

@@ -54,41 +54,41 @@ pub struct SynthArgs {
     #[arg(long)]
     pub ascii: bool,
     /// Random seed.
-    #[arg(long, default_value_t = 0)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 0)]
     pub seed: u64,
     /// Per-point Gaussian noise σ (scene units) [default: per scene].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub jitter: Option<f64>,
     /// Per-primitive Gaussian offset σ (scene units).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 0.0)]
     pub drift: f64,
     /// Largest random shift against the lattice, as a fraction of its spacing
     /// (nine-cylinders: of the grid pitch).
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 0.0)]
     pub offset: f64,
     /// Largest random rotation against the lattice, degrees.
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 0.0)]
     pub angle: f64,
     /// Total number of points [default: from a per-scene density].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub points: Option<usize>,
     /// Sizes of the true primitives.
     #[command(flatten)]
     pub sizes: SizeArgs,
     /// Hallway length [default: 10].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub length: Option<f64>,
     /// Hallway width [default: 2].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub width: Option<f64>,
     /// Hallway wall height [default: 2.5].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub height: Option<f64>,
     /// Hallway with a ceiling.
     #[arg(long)]
     pub ceiling: bool,
     /// Pipe: number of straight runs.
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub segments: Option<usize>,
     /// Nine cylinders: which of the nine exist, as a 9-bit mask (0..=511).
     #[arg(long, default_value_t = 0b1_1111_1111)]
@@ -97,23 +97,23 @@ pub struct SynthArgs {
     #[arg(long, value_name = "object.ply")]
     pub model: Option<PathBuf>,
     /// Registration: points on the object.
-    #[arg(long, default_value_t = 100)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 100)]
     pub inliers: usize,
     /// Registration: uniform outliers.
-    #[arg(long, default_value_t = 1900)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 1900)]
     pub outliers: usize,
     /// Replace the sampled cloud by a simulated depth-sensor scan of the truth from this
     /// many poses (a walk down the hallway, an orbit around other scenes): points get
     /// sensor origins (for `fit --method mcmc`), normals and labels (flat face-up: 1
     /// ground at the floor; vertical: 2 wall; other: 0). --jitter is the range noise.
-    #[arg(long, value_name = "FRAMES")]
+    #[arg(allow_hyphen_values = true, long, value_name = "FRAMES")]
     pub scan: Option<usize>,
     /// Registration: number of objects (side by side along x).
-    #[arg(long, default_value_t = 1)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 1)]
     pub objects: usize,
     /// Registration: largest random translation per axis (scene units) [default: 0,
     /// rotation only].
-    #[arg(long, default_value_t = 0.0)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = 0.0)]
     pub translation: f64,
     /// Partial view: a plane under the object, facing the sensor.
     #[arg(long)]

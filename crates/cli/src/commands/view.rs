@@ -22,11 +22,11 @@ pub struct ViewArgs {
     pub output: PathBuf,
     /// The most points embedded in the page (an even subsample of larger clouds; about
     /// 17 bytes per point).
-    #[arg(long, default_value_t = DEFAULT_HTML_POINTS)]
+    #[arg(allow_hyphen_values = true, long, default_value_t = DEFAULT_HTML_POINTS)]
     pub max_points: usize,
     /// Distance (scene units) at the top of the points' colour scale [default: the 95th
     /// percentile of the embedded points' distances to the model].
-    #[arg(long)]
+    #[arg(allow_hyphen_values = true, long)]
     pub scale: Option<f64>,
 }
 

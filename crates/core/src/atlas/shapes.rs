@@ -1,6 +1,8 @@
 //! The [`Shape`] enum and its geometry. See the module docs of [`crate::atlas`] for the
 //! local-frame conventions.
 
+use std::f64::consts::TAU;
+
 use nalgebra::{Point3, Vector3};
 use serde_json::{Map, Value};
 
@@ -258,11 +260,27 @@ impl Shape {
     /// `spacing` made safe to sample with: never so fine that the surface would get more
     /// than [`Shape::MAX_SAMPLES`] samples (this also catches 0, negative and NaN spacings).
     fn safe_spacing(&self, spacing: f64) -> f64 {
-        let finest = (self.area() / Self::MAX_SAMPLES).sqrt();
+        // A grid of a × b cells at spacing h has at most ab/h² + (a + b)/h + 1 cells:
+        // bounding both the area term and the longest grid line keeps a thin tube of
+        // huge radius (one row of 2πr/h cells) within the limit too.
+        let by_area = (self.area() / Self::MAX_SAMPLES).sqrt();
+        let finest = by_area.max(self.longest_grid_line() / Self::MAX_SAMPLES);
         if spacing.is_finite() && spacing >= finest {
             spacing
         } else {
             finest.max(f64::MIN_POSITIVE)
+        }
+    }
+
+    /// The longest run of samples of one grid line in [`Shape::sample_surface`]'s layout
+    /// (local units): a tube's circumference or length; 0 where the count follows the
+    /// area alone.
+    fn longest_grid_line(&self) -> f64 {
+        match self {
+            Shape::Cylinder { length, radius } => (TAU * radius).max(*length),
+            Shape::Elbow { radius, .. } => TAU * radius,
+            Shape::Square { side } => *side,
+            _ => 0.0,
         }
     }
 

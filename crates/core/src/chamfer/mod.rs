@@ -32,6 +32,7 @@ mod build;
 mod coefficients;
 mod dominance;
 mod eval;
+mod memory;
 mod row_builder;
 mod samples;
 #[cfg(test)]
@@ -42,6 +43,7 @@ mod tests;
 pub use coefficients::Coefficients;
 pub use dominance::Reduced;
 pub use eval::Evaluator;
+pub use memory::{BYTES_PER_POINT, check_memory, estimate_bytes};
 pub use samples::{CandidateGeometry, SampleSets};
 
 use crate::{Error, Result, check};

@@ -60,6 +60,14 @@ impl SampleSets {
     /// Groups `samples` by `owner` (each in `0..n`). Every candidate needs ≥ 1 sample.
     pub fn new(samples: &[Point3<f64>], owner: &[usize], n: usize) -> Result<Self> {
         check::same_len("owners", owner.len(), "samples", samples.len())?;
+        // Checked before anything of size n is allocated: n comes from the caller.
+        if n > samples.len() {
+            let expected = format!(
+                "at most the {} samples (every candidate needs one)",
+                samples.len()
+            );
+            return Err(Error::out_of_range("n", n, expected));
+        }
         let mut counts = vec![0usize; n];
         for (k, &o) in owner.iter().enumerate() {
             if o >= n {

@@ -89,6 +89,7 @@ pub fn compact_model(
     let t0 = Instant::now();
     let detection = detect(points, index, &options.detect)?;
     let detect_seconds = t0.elapsed().as_secs_f64();
+    progress.checkpoint()?;
     progress.message(&format!(
         "detected {} segments ({} clutter, {} points unassigned), σ = {:.5}, spacing {:.5}, {:.2} s",
         detection.segments.len(),
@@ -157,6 +158,7 @@ pub fn compact_model(
         }
     }
     let existence_seconds = t1.elapsed().as_secs_f64();
+    progress.checkpoint()?;
     progress.message(&format!(
         "{} of {} proposed primitives exist, {:.2} s",
         primitives.len(),

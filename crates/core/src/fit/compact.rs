@@ -3,8 +3,7 @@
 
 use nalgebra::{Point3, UnitQuaternion};
 
-use super::budget::physical_memory;
-use super::options::{DEFAULT_MEMORY_SHARE, FitOptions};
+use super::options::FitOptions;
 use super::settings::{CompactSettings, MethodSettings};
 use super::{FitResult, FitStats, Settings};
 use crate::chamfer::ChamferOptions;
@@ -111,7 +110,8 @@ fn compact_settings(options: &FitOptions, model: &CompactModel) -> Settings {
         seed: options.seed,
         memory_budget: options
             .memory_budget
-            .unwrap_or_else(|| (physical_memory() as f64 * DEFAULT_MEMORY_SHARE) as u64),
+            .unwrap_or_else(crate::budget::default_memory_budget),
+        work_budget: options.work_budget.unwrap_or(super::DEFAULT_WORK_PER_POINT),
         mesh: None,
         method: MethodSettings::Compact(CompactSettings {
             segments: detection.segments.len(),

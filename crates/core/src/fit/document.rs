@@ -8,7 +8,7 @@
 //! the mcmc method, the lattice's (`size` … `refine`) for every method but the compact
 //! model, which writes `detect` instead.
 
-use nalgebra::{Point3, Quaternion, UnitQuaternion};
+use nalgebra::{Point3, UnitQuaternion};
 use serde::{Deserialize, Serialize};
 
 use super::options::{AUTO_TYPES, FitOptions, parse_types};
@@ -19,7 +19,7 @@ use crate::limit::{Limit, as_count};
 use crate::ray::RayModel;
 use crate::refine::RefineOptions;
 use crate::solve::{Parameterization, SolverOptions};
-use crate::{Error, Primitive, Result};
+use crate::{Error, Primitive, Result, check};
 
 /// A whole `result.json`: the version, the settings and measures (each command its own),
 /// and the primitives (entries `E`: [`PrimitiveEntry`], or with more per-primitive keys).
@@ -311,7 +311,8 @@ impl SettingsDoc {
             chamfer,
             solver,
             seed: self.seed,
-            memory_budget: super::settings::default_memory_budget(),
+            memory_budget: crate::budget::default_memory_budget(),
+            work_budget: super::DEFAULT_WORK_PER_POINT,
             mesh: self.mesh_model.as_deref().map(load).transpose()?,
             method,
         };
@@ -413,17 +414,7 @@ impl DetectDoc {
 impl FrameDoc {
     /// The rotation (normalised; a zero quaternion is an error).
     fn rotation(&self) -> Result<UnitQuaternion<f64>> {
-        let [w, i, j, k] = self.rotation;
-        let q = Quaternion::new(w, i, j, k);
-        if q.norm().is_nan() || q.norm() <= 1e-12 {
-            let value = format!("{:?}", self.rotation);
-            return Err(Error::out_of_range(
-                "frame.rotation",
-                value,
-                "a non-zero quaternion",
-            ));
-        }
-        Ok(UnitQuaternion::from_quaternion(q))
+        check::unit_quaternion("frame.rotation", self.rotation)
     }
 
     /// The source as [`Settings::frame_source`] holds it.

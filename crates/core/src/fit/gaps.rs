@@ -8,7 +8,7 @@ use crate::metrics::point_to_model_distances;
 use crate::progress::Progress;
 use crate::refine::refine;
 use crate::spatial::PointIndex;
-use crate::{PointCloud, Result};
+use crate::{Error, PointCloud, Result};
 
 /// Coarse to fine: when a refined fit leaves points unexplained (farther than
 /// `max(4σ̂, h / 2)` from every primitive, at least 1 % of the points and 20 of them),
@@ -49,8 +49,12 @@ pub(super) fn fill_gaps(
     let fine = s.finer();
     let sub = PointCloud::from_points(residual);
     let sub_index = PointIndex::new(&sub.points);
-    let Ok(extra) = fit_pass(&sub, &sub_index, fine, progress) else {
-        return Ok(result);
+    // A finer pass that cannot run (over a budget, no candidate) leaves the result as
+    // it is; only a cancellation ends the fit.
+    let extra = match fit_pass(&sub, &sub_index, fine, progress) {
+        Ok(extra) => extra,
+        Err(Error::Cancelled) => return Err(Error::Cancelled),
+        Err(_) => return Ok(result),
     };
     if extra.primitives.is_empty() {
         return Ok(result);

@@ -7,7 +7,7 @@
 //! | validate | `mod.rs` | the cloud is non-empty and finite |
 //! | options | `options.rs` | [`FitOptions`] (what a user may set); its `Default` is the one table of fixed defaults, `primfit fit`'s and `primfit.fit`'s |
 //! | resolve | [`settings`](Settings::resolve) | [`FitOptions`] → [`Settings`] (every value used; the defaults that depend on the cloud) |
-//! | pass | `pass.rs` | lattice candidates near the data → memory check (`budget.rs`, [`estimate_bytes`]) → coefficients → L-BFGS and polish → optional refinement |
+//! | pass | `pass.rs` | lattice candidates near the data → memory check ([`estimate_bytes`]) → coefficients → L-BFGS and polish → optional refinement |
 //! | gaps | `gaps.rs` | coarse to fine: a finer lattice where the refined pass leaves points unexplained |
 //! | re-aligned pass | `mod.rs` | with an estimated frame and refinement: the lattice re-aligned to the first pass's primitives, then pass and gaps again |
 //! | pick | `mod.rs` | of the two passes, the one with the lower [`binary_chamfer`] |
@@ -35,22 +35,23 @@
 //! | lattice origin | `axis`: the scene origin; `auto` and a given frame without origin: grid planes on the data (`frame::grid_origin`) |
 //! | refinement | on ([`crate::refine::RefineOptions::default`]) |
 
-mod budget;
 mod compact;
 pub(crate) mod document;
 mod gaps;
 mod mcmc;
 mod options;
 mod pass;
+mod problem;
 mod recentre;
 mod result;
 mod settings;
 #[cfg(test)]
 mod tests;
+mod work;
 
+pub use crate::chamfer::{BYTES_PER_POINT, estimate_bytes};
 /// The lattice frame a fit uses ([`FitOptions::frame`]).
 pub use crate::frame::FrameChoice;
-pub use budget::{BYTES_PER_POINT, estimate_bytes};
 pub use mcmc::McmcRun;
 pub use options::{
     AUTO_TYPES, DEFAULT_ALPHA, DEFAULT_BETA, DEFAULT_DECAY, DEFAULT_FLIPS_PER_STEP, DEFAULT_FRAME,
@@ -58,8 +59,10 @@ pub use options::{
     DEFAULT_SEARCH_POINTS, DEFAULT_SEED, DEFAULT_WEIGHT, FitOptions, McmcFitOptions, MethodOptions,
     parse_types,
 };
+pub use problem::{candidate_samples, fit_candidates, fit_problem};
 pub use result::{FitResult, FitStats, binary_chamfer, primitives_mesh, result_json};
 pub use settings::{CompactSettings, McmcSettings, MethodSettings, Settings};
+pub use work::{DEFAULT_WORK_PER_POINT, estimate_work};
 
 use crate::frame::realign;
 use crate::progress::Progress;
@@ -68,21 +71,14 @@ use crate::{Error, PointCloud, Result};
 use gaps::fill_gaps;
 use pass::fit_pass;
 
-/// Fits primitives to `cloud`: a lattice pass (candidates, coefficients, L-BFGS, polish),
-/// then, with [`FitOptions::refine`], continuous refinement ([`crate::refine`]). With an
-/// estimated frame (`auto`) and refinement, the lattice is then re-aligned to the refined
-/// primitives (`frame::realign`: their axes and the grid phase of their centres)
-/// and fitted and refined once more; the pass with the lower binary chamfer is kept.
-///
-/// With [`MethodOptions::Mcmc`] the ray likelihood and Metropolis–Hastings decide
-/// existence instead (thesis ch. 4; the cloud needs sensor origins).
-pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) -> Result<FitResult> {
-    if let MethodOptions::Mcmc(_) = options.method {
-        return mcmc::fit_mcmc(cloud, options, progress);
-    }
-    if cloud.is_empty() {
-        return Err(Error::EmptyCloud);
-    }
+/// The smallest and largest cloud extent (bounding-box diagonal, scene units) a fit
+/// accepts: squared distances, and sums of millions of them, then stay far inside the
+/// range of `f64` (1e±308). A cloud outside it is refused with the advice to rescale.
+pub const EXTENT_RANGE: (f64, f64) = (1e-100, 1e100);
+
+/// A cloud a fit can work on: not empty, every coordinate finite, and an extent within
+/// [`EXTENT_RANGE`].
+fn validate_cloud(cloud: &PointCloud) -> Result<()> {
     if let Some(index) = cloud
         .points
         .iter()
@@ -93,6 +89,35 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
             index,
         });
     }
+    let (lo, hi) = cloud.bounds().ok_or(Error::EmptyCloud)?;
+    // The largest axis span, not the diagonal, which overflows first.
+    let extent = (hi - lo).amax();
+    let (min, max) = EXTENT_RANGE;
+    if !(min..=max).contains(&extent) {
+        let name = "the cloud's extent (largest side of its bounding box)";
+        let expected = if extent == 0.0 {
+            "positive: the points must not all coincide".to_string()
+        } else {
+            format!("between {min:e} and {max:e} scene units: rescale the cloud")
+        };
+        return Err(Error::out_of_range(name, format!("{extent:e}"), expected));
+    }
+    Ok(())
+}
+
+/// Fits primitives to `cloud`: a lattice pass (candidates, coefficients, L-BFGS, polish),
+/// then, with [`FitOptions::refine`], continuous refinement ([`crate::refine`]). With an
+/// estimated frame (`auto`) and refinement, the lattice is then re-aligned to the refined
+/// primitives (`frame::realign`: their axes and the grid phase of their centres)
+/// and fitted and refined once more; the pass with the lower binary chamfer is kept.
+///
+/// With [`MethodOptions::Mcmc`] the ray likelihood and Metropolis–Hastings decide
+/// existence instead (thesis ch. 4; the cloud needs sensor origins).
+pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) -> Result<FitResult> {
+    validate_cloud(cloud)?;
+    if let MethodOptions::Mcmc(_) = options.method {
+        return mcmc::fit_mcmc(cloud, options, progress);
+    }
     if let Some(shift) = recentre::local_shift(cloud) {
         return recentre::fit_shifted(cloud, options, progress, shift);
     }
@@ -101,6 +126,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         return compact::fit_compact(cloud, &index, options, progress);
     }
     let settings = Settings::resolve(cloud, &index, options)?;
+    progress.checkpoint()?;
     progress.message(&format!("settings: {}", settings.to_json()));
     let first = fill_gaps(
         cloud,
@@ -120,6 +146,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         first.settings.spacing,
     );
     let settings = first.settings.realigned(frame, origin);
+    progress.checkpoint()?;
     progress.message(&format!(
         "re-aligned lattice: frame {:?}, origin {origin:?}",
         frame.quaternion().coords
@@ -132,6 +159,7 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
     )?;
     let loss = |r: &FitResult| binary_chamfer(cloud, &r.primitives, &r.settings).map(|l| l.total);
     let (a, b) = (loss(&first)?, loss(&second)?);
+    progress.checkpoint()?;
     progress.message(&format!(
         "binary chamfer: first pass {a:.6}, re-aligned pass {b:.6}"
     ));

@@ -53,8 +53,7 @@ pub const DEFAULT_MIN_COS: f64 = 0.2;
 pub const DEFAULT_FLIPS_PER_STEP: f64 = 1.0;
 /// Default `mcmc` flip-rate factor per frame of age.
 pub const DEFAULT_DECAY: f64 = 0.9;
-/// Default share of the machine's physical memory a fit may plan to use.
-pub const DEFAULT_MEMORY_SHARE: f64 = 0.5;
+pub use crate::budget::DEFAULT_MEMORY_SHARE;
 
 /// User-facing options of [`super::fit`]; `None` means "derive from the cloud"
 /// ([`super::Settings::resolve`]). The `Default` is `primfit fit`'s.
@@ -101,6 +100,9 @@ pub struct FitOptions {
     /// Upper bound on the estimated peak memory of the fit ([`super::estimate_bytes`]),
     /// bytes (default: [`DEFAULT_MEMORY_SHARE`] of the machine's memory).
     pub memory_budget: Option<u64>,
+    /// Upper bound on the estimated work of a lattice pass ([`super::estimate_work`]),
+    /// distance evaluations per input point (default: [`super::DEFAULT_WORK_PER_POINT`]).
+    pub work_budget: Option<f64>,
     /// Seed for every random choice (the chamfer fit itself is deterministic).
     pub seed: u64,
 }
@@ -127,6 +129,7 @@ impl Default for FitOptions {
             solver: SolverOptions::default(),
             method: MethodOptions::default(),
             memory_budget: None,
+            work_budget: None,
             seed: DEFAULT_SEED,
         }
     }

@@ -2,10 +2,11 @@
 
 use std::time::Instant;
 
-use super::budget::estimate_bytes;
+use super::work::check_work;
 use super::{FitResult, FitStats, Settings};
 use crate::atlas::Shape;
 use crate::chamfer::Coefficients;
+use crate::chamfer::estimate_bytes;
 use crate::error::{Remedy, Unit};
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
@@ -34,7 +35,7 @@ pub(super) fn refine_context<'a>(
 
 /// The peak memory the coefficients of `candidates` over `points` points will need, and
 /// the most samples of any template; an error when that is over the settings' budget.
-fn check_memory(
+pub(super) fn check_memory(
     points: usize,
     candidates: &CandidateSet,
     settings: &Settings,
@@ -79,6 +80,8 @@ pub(super) fn fit_pass(
 ) -> Result<FitResult> {
     let t0 = Instant::now();
     let mut candidates = CandidateSet::build(&settings.lattice(), cloud)?;
+    // Before the filter below, whose own cost is every candidate's samples.
+    check_work(cloud.len(), &candidates, &settings)?;
     // Exact in effect: a candidate with no point within the cap of its surface can only
     // raise the loss (see `CandidateSet::near_data`).
     if settings.cap > 0.0 {
@@ -93,6 +96,7 @@ pub(super) fn fit_pass(
         });
     }
     let (need, max_samples) = check_memory(cloud.len(), &candidates, &settings)?;
+    progress.checkpoint()?;
     progress.message(&format!(
         "{} candidates, {} samples per template at most",
         candidates.len(),
@@ -112,6 +116,7 @@ pub(super) fn fit_pass(
     candidates.retain(&reduced.keep_mask(lattice_candidates));
     let coeffs = reduced.coefficients;
     let coefficient_seconds = t1.elapsed().as_secs_f64();
+    progress.checkpoint()?;
     progress.message(&format!(
         "{} of {lattice_candidates} candidates can exist (the rest are dominated); \
          {} entries ({} bytes each, {:.1} MiB in all)",
@@ -135,6 +140,7 @@ pub(super) fn fit_pass(
         let shapes = settings.shapes();
         let ctx = refine_context(cloud, index, &settings, &shapes);
         let r: Refined = refine(&ctx, &primitives, options)?;
+        progress.checkpoint()?;
         progress.message(&format!(
             "refinement: binary chamfer {:.6} → {:.6}, {} primitives dropped, {:.2} s",
             r.loss_before, r.loss_after, r.dropped, r.seconds

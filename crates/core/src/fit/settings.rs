@@ -8,7 +8,6 @@
 use nalgebra::{Point3, UnitQuaternion};
 use serde_json::Value;
 
-use super::budget::physical_memory;
 use super::document::SettingsDoc;
 use super::options::{FitOptions, McmcFitOptions, MethodOptions};
 use crate::atlas::{MeshShape, Shape, ShapeKind};
@@ -24,7 +23,7 @@ use crate::surface::{
 };
 use crate::{Error, PointCloud, Result, check};
 
-use super::options::{DEFAULT_KIND, DEFAULT_MEMORY_SHARE};
+use super::options::DEFAULT_KIND;
 
 /// Every setting of a fit, defaults resolved.
 #[derive(Debug, Clone)]
@@ -65,6 +64,9 @@ pub struct Settings {
     pub seed: u64,
     /// Budget for the estimated peak memory of a fit, bytes ([`super::estimate_bytes`]).
     pub memory_budget: u64,
+    /// Budget for the estimated work of a lattice pass, distance evaluations per point
+    /// ([`super::estimate_work`]).
+    pub work_budget: f64,
     /// Mesh source, if the mesh type is used.
     pub mesh: Option<MeshShape>,
     /// The inference method and the settings only it has.
@@ -138,6 +140,12 @@ impl McmcSettings {
             min_cos: o.min_cos,
         };
         ray.validate()?;
+        if let Some(steps) = o.steps {
+            check::at_most("steps", steps, MAX_MCMC_STEPS)?;
+        }
+        if let Some(burn_in) = o.burn_in {
+            check::at_most("burn_in", burn_in, MAX_MCMC_STEPS)?;
+        }
         Ok(McmcSettings {
             ray,
             prior: o.prior,
@@ -148,6 +156,10 @@ impl McmcSettings {
         })
     }
 }
+
+/// The most `mcmc` proposals (steps, and burn-in): 100× the default of a 5 000-candidate
+/// lattice, minutes of sampling at most.
+pub const MAX_MCMC_STEPS: usize = 10_000_000;
 
 /// The default `mcmc` σ is the spacing divided by this.
 const MCMC_SIGMA_PER_SPACING: f64 = 10.0;
@@ -272,6 +284,30 @@ fn extent(cloud: &PointCloud) -> Result<f64> {
     Ok(diagonal)
 }
 
+/// The work budget of `o` (per point), checked positive.
+pub(super) fn work_budget(o: &FitOptions) -> Result<f64> {
+    let budget = o.work_budget.unwrap_or(super::DEFAULT_WORK_PER_POINT);
+    check::positive("work_budget", budget)?;
+    Ok(budget)
+}
+
+/// A lattice type sized by `size` (all but the elbow and the mesh) smaller than the
+/// cloud's median point spacing holds about one point: its existence cannot be
+/// measured, and the fit would only multiply candidates.
+fn check_size_against_spacing(kinds: &[ShapeKind], size: f64, point_spacing: f64) -> Result<()> {
+    let sized = kinds.iter().any(|k| {
+        matches!(
+            k,
+            ShapeKind::Square | ShapeKind::Disk | ShapeKind::Sphere | ShapeKind::Cylinder
+        )
+    });
+    if sized && size < point_spacing {
+        let expected = format!("at least the cloud's median point spacing {point_spacing:.4}");
+        return Err(Error::out_of_range("size", size, expected));
+    }
+    Ok(())
+}
+
 /// The lattice frame, the frame estimate's support and the grid origin of `o.frame`:
 /// given values as they are, otherwise estimated from local planes of the cloud.
 fn resolve_frame(
@@ -347,6 +383,7 @@ impl Settings {
                 needed_by: "the mesh primitive type",
             });
         }
+        check_size_against_spacing(&kinds, size, point_spacing)?;
         let chamfer = chamfer_options(o, cap)?;
         if let Some(r) = &o.refine {
             r.validate()?;
@@ -376,7 +413,10 @@ impl Settings {
             chamfer,
             solver: o.solver.clone(),
             seed: o.seed,
-            memory_budget: o.memory_budget.unwrap_or_else(default_memory_budget),
+            memory_budget: o
+                .memory_budget
+                .unwrap_or_else(crate::budget::default_memory_budget),
+            work_budget: work_budget(o)?,
             mesh: o.mesh.clone(),
             method,
         })
@@ -455,11 +495,6 @@ impl Settings {
     pub fn to_json(&self) -> Value {
         serde_json::to_value(SettingsDoc::new(self, None)).unwrap_or(Value::Null)
     }
-}
-
-/// The default memory budget: [`DEFAULT_MEMORY_SHARE`] of the machine's memory (bytes).
-pub(super) fn default_memory_budget() -> u64 {
-    (physical_memory() as f64 * DEFAULT_MEMORY_SHARE) as u64
 }
 
 #[cfg(test)]

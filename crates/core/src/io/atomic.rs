@@ -4,11 +4,31 @@ use std::fs::{self, File, OpenOptions};
 use std::io::{self, BufWriter, Write};
 use std::path::{Path, PathBuf};
 use std::sync::atomic::{AtomicU64, Ordering};
+use std::sync::{Mutex, PoisonError};
 
 use crate::{Error, Result};
 
 /// Distinguishes temporary files made by one process (with the process id).
 static TEMP_COUNTER: AtomicU64 = AtomicU64::new(0);
+
+/// The temporary files of this process not yet renamed or removed, for
+/// [`remove_temporary_files`]. A file is listed here from its creation until its rename or
+/// removal, both done while holding the lock, so a signal handler that takes the lock
+/// never removes a file that has become an output.
+static LIVE: Mutex<Vec<PathBuf>> = Mutex::new(Vec::new());
+
+/// Removes every temporary file this process is writing, and keeps the lock so that no
+/// other is renamed into place: for a signal handler about to end the process (the CLI's
+/// SIGINT/SIGTERM handler), so that an interrupted write leaves nothing behind and the
+/// outputs as they were.
+pub fn remove_temporary_files() {
+    let live = LIVE.lock().unwrap_or_else(PoisonError::into_inner);
+    for path in live.iter() {
+        let _ = fs::remove_file(path);
+    }
+    // The process ends next; holding the lock until then stops any rename.
+    std::mem::forget(live);
+}
 
 /// How many temporary names to try before giving up (names collide only with files
 /// left by a crashed process that had the same id).
@@ -41,17 +61,55 @@ pub fn stage<F>(path: &Path, write: F) -> Result<StagedFile>
 where
     F: FnOnce(&mut dyn Write) -> Result<()>,
 {
-    let temp = TempFile::beside(path)?;
+    let target = writable_target(path)?;
+    let temp = TempFile::beside(&target)?;
     let mut out = BufWriter::new(&temp.file);
     write(&mut out)?;
     out.flush().map_err(|e| Error::io(path, e))?;
     drop(out);
     temp.file.sync_all().map_err(|e| Error::io(path, e))?;
-    Ok(StagedFile {
-        temp,
-        target: path.to_path_buf(),
-    })
+    Ok(StagedFile { temp, target })
 }
+
+/// The file a write to `path` must replace: `path` itself, or where a symbolic link
+/// there points (the link is kept, its target replaced, as `>` in a shell does). An
+/// existing FIFO, socket, device or folder is refused: renaming over it would
+/// silently turn it into a regular file.
+pub fn writable_target(path: &Path) -> Result<PathBuf> {
+    let mut target = path.to_path_buf();
+    for _ in 0..MAX_LINK_HOPS {
+        let meta = match fs::symlink_metadata(&target) {
+            Ok(m) => m,
+            Err(e) if e.kind() == io::ErrorKind::NotFound => return Ok(target),
+            Err(e) => return Err(Error::io(path, e)),
+        };
+        if meta.file_type().is_symlink() {
+            let link = fs::read_link(&target).map_err(|e| Error::io(path, e))?;
+            target = match target.parent() {
+                Some(dir) => dir.join(link),
+                None => link,
+            };
+        } else if meta.is_file() {
+            return Ok(target);
+        } else {
+            let what = if meta.is_dir() {
+                "a folder"
+            } else {
+                "not a regular file"
+            };
+            let e = io::Error::new(io::ErrorKind::InvalidInput, format!("{what}: not replaced"));
+            return Err(Error::io(path, e));
+        }
+    }
+    let e = io::Error::new(
+        io::ErrorKind::InvalidInput,
+        "too many levels of symbolic links",
+    );
+    Err(Error::io(path, e))
+}
+
+/// Symbolic links followed before [`writable_target`] gives up (Linux's own limit).
+const MAX_LINK_HOPS: usize = 40;
 
 /// [`stage`] for a JSON value, formatted as by [`write_json_atomic`].
 pub fn stage_json(path: &Path, value: &serde_json::Value) -> Result<StagedFile> {
@@ -104,8 +162,10 @@ impl TempFile {
             temp_name.push(name);
             temp_name.push(format!(".primfit-{}-{n}.tmp", std::process::id()));
             let path = dir.join(temp_name);
+            let mut live = LIVE.lock().unwrap_or_else(PoisonError::into_inner);
             match OpenOptions::new().write(true).create_new(true).open(&path) {
                 Ok(file) => {
+                    live.push(path.clone());
                     return Ok(TempFile {
                         path,
                         file,
@@ -122,7 +182,9 @@ impl TempFile {
 
     /// Renames the temporary file to `target`, replacing any file there.
     fn persist(mut self, target: &Path) -> Result<()> {
+        let mut live = LIVE.lock().unwrap_or_else(PoisonError::into_inner);
         fs::rename(&self.path, target).map_err(|e| Error::io(target, e))?;
+        live.retain(|p| p != &self.path);
         self.keep = true;
         Ok(())
     }
@@ -131,8 +193,10 @@ impl TempFile {
 impl Drop for TempFile {
     fn drop(&mut self) {
         if !self.keep {
+            let mut live = LIVE.lock().unwrap_or_else(PoisonError::into_inner);
             // Best effort: the error that got us here matters more than this one.
             let _ = fs::remove_file(&self.path);
+            live.retain(|p| p != &self.path);
         }
     }
 }

@@ -82,6 +82,7 @@ mod collect;
 mod detect;
 mod e57;
 mod export;
+mod guard;
 pub(crate) mod json;
 mod las;
 mod palette;
@@ -96,7 +97,10 @@ use std::fmt;
 
 use std::path::Path;
 
-pub use atomic::{StagedFile, stage, stage_json, write_atomic, write_json_atomic};
+pub use atomic::{
+    StagedFile, remove_temporary_files, stage, stage_json, writable_target, write_atomic,
+    write_json_atomic,
+};
 pub use detect::{ACCEPTED_FORMATS, CloudFormat, PcdData, TextKind};
 pub use export::{MESH_FORMATS, MeshFormat, write_primitives_mesh};
 pub use palette::{PALETTE, palette_color};
@@ -151,8 +155,8 @@ pub fn read_cloud_report(path: &Path) -> Result<(PointCloud, ReadReport)> {
     match detect::detect(path)? {
         Kind::Ply => ply::read_cloud_report(path),
         Kind::Pcd => pcd::read_cloud_report(path),
-        Kind::Las => las::read_cloud_report(path),
-        Kind::E57 => e57::read_cloud_report(path),
+        Kind::Las => guard::decoder(path, "LAS/LAZ", || las::read_cloud_report(path)),
+        Kind::E57 => guard::decoder(path, "E57", || e57::read_cloud_report(path)),
         Kind::Text(kind) => text::read_cloud_report(path, kind),
     }
 }

@@ -304,6 +304,10 @@ const MAX_TEMPLATE_SAMPLES: f64 = 1e7;
 const MAX_CELLS_PER_AXIS: f64 = (1u32 << 24) as f64;
 /// The most candidates a lattice may have (about 80 bytes each before any coefficient).
 const MAX_CANDIDATES: f64 = (1u64 << 27) as f64;
+/// The most (occupied node, offset) pairs the dilation may enumerate: a few seconds of
+/// hashing. Each occupied node is dilated by the ball of lattice offsets within a
+/// candidate's reach, whose size grows with (size / spacing)³.
+const MAX_DILATION_STEPS: f64 = 2e8;
 
 /// Fails (instead of exhausting memory) when a template would have absurdly many
 /// samples: a sample spacing far finer than the shape.
@@ -350,7 +354,8 @@ fn check_grid_extent(spec: &LatticeSpec, cloud: &PointCloud) -> Result<()> {
 }
 
 /// Fails when dilating the `occupied` nodes by `reach` cells could give more than
-/// [`MAX_CANDIDATES`] candidates of `shape` (a spacing far finer than the shape).
+/// [`MAX_CANDIDATES`] candidates of `shape`, or would visit more than
+/// [`MAX_DILATION_STEPS`] offsets (a spacing far finer than the shape).
 fn check_dilation(
     spec: &LatticeSpec,
     shape: &Shape,
@@ -368,20 +373,26 @@ fn check_dilation(
         let hi = occupied.iter().map(|n| n[axis]).max().unwrap_or(0);
         boxed *= f64::from(hi) - f64::from(lo) + 1.0 + 2.0 * k;
     }
-    let bound = (occupied.len() as f64 * ball).min(boxed) * rotations as f64;
+    let steps = occupied.len() as f64 * ball;
+    let bound = steps.min(boxed) * rotations as f64;
+    let what = format!(
+        "a {} of radius {:.3e} on a lattice of spacing {}",
+        shape.kind().name(),
+        shape.bounding_radius(),
+        spec.spacing
+    );
+    let over = |need: f64, limit: f64, unit: &'static str| Error::OverLimit {
+        what: what.clone(),
+        need,
+        limit,
+        unit: Unit::Count(unit),
+        remedies: vec![Remedy::Raise("spacing")],
+    };
     if !(ball <= MAX_CANDIDATES && bound <= MAX_CANDIDATES) {
-        return Err(Error::OverLimit {
-            what: format!(
-                "a {} of radius {:.3e} on a lattice of spacing {}",
-                shape.kind().name(),
-                shape.bounding_radius(),
-                spec.spacing
-            ),
-            need: bound.max(ball),
-            limit: MAX_CANDIDATES,
-            unit: Unit::Count("candidates"),
-            remedies: vec![Remedy::Raise("spacing")],
-        });
+        return Err(over(bound.max(ball), MAX_CANDIDATES, "candidates"));
+    }
+    if steps > MAX_DILATION_STEPS {
+        return Err(over(steps, MAX_DILATION_STEPS, "lattice offsets to visit"));
     }
     Ok(())
 }

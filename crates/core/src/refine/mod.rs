@@ -52,6 +52,12 @@ pub const MAX_REFINE_POINTS: usize = 50_000;
 /// the whole cloud's).
 const SPACING_PROBES: usize = 2000;
 
+/// The most refinement rounds (default 4; refinement settles in 2–4): a bound on the
+/// work a round count can ask for.
+pub const MAX_ROUNDS: usize = 100;
+/// The most Levenberg–Marquardt iterations per primitive and round (default 6).
+pub const MAX_ITERATIONS: usize = 1000;
+
 /// Options of [`refine`].
 #[derive(Debug, Clone, PartialEq)]
 pub struct RefineOptions {
@@ -94,6 +100,8 @@ impl RefineOptions {
     /// Checks ranges.
     pub fn validate(&self) -> Result<()> {
         check::not_below("max_growth", self.max_growth, 1.0)?;
+        check::at_most("rounds", self.rounds, MAX_ROUNDS)?;
+        check::at_most("iterations", self.iterations, MAX_ITERATIONS)?;
         match self.trim {
             Some(t) => check::positive("trim", t),
             None => Ok(()),

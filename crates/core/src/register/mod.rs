@@ -188,6 +188,21 @@ pub fn score_poses(
     Ok((m.score, m.existence))
 }
 
+/// `count` objects can be found in a cloud of `points` points only if each explains at
+/// least `min_support` of them (and one point at the least): refused up front
+/// otherwise, so that no count asks for an unbounded search.
+fn check_count(count: Option<usize>, points: usize, min_support: f64) -> Result<()> {
+    let Some(count) = count else { return Ok(()) };
+    let most = (points as f64 / min_support.max(1.0)).floor().max(1.0) as usize;
+    if count > most {
+        let expected = format!(
+            "at most {most}: each object explains at least {min_support} of the {points} points"
+        );
+        return Err(Error::out_of_range("count", count, expected));
+    }
+    Ok(())
+}
+
 /// Registers `mesh` (local frame, mesh units) in `cloud`: finds the pose(s) of the
 /// object(s) the cloud contains (see the module documentation).
 ///
@@ -222,6 +237,7 @@ pub fn register(
     progress: &dyn Progress,
 ) -> Result<Registration> {
     let start = Instant::now();
+    check_count(options.count, cloud.len(), options.min_support)?;
     let (context, flips) = context(cloud, mesh, options)?;
     let size = context.size;
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);

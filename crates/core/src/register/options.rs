@@ -116,6 +116,13 @@ pub struct RegisterOptions {
     pub seed: u64,
 }
 
+/// The most particles of a round (first or later): 50× the default first round, far
+/// past where more particles stop helping, and still minutes of work at most.
+pub const MAX_PARTICLES: usize = 100_000;
+
+/// The most filter rounds per object (the default is 40; the filter settles in 10–30).
+pub const MAX_ROUNDS: usize = 10_000;
+
 impl Default for RegisterOptions {
     fn default() -> Self {
         RegisterOptions {
@@ -199,6 +206,9 @@ impl RegisterOptions {
         ] {
             check::at_least(name, k, 1)?;
         }
+        check::at_most("initial_particles", self.initial_particles, MAX_PARTICLES)?;
+        check::at_most("particles", self.particles, MAX_PARTICLES)?;
+        check::at_most("max_rounds", self.max_rounds, MAX_ROUNDS)?;
         if let Some(k) = self.count {
             check::at_least("count", k, 1)?;
         }

@@ -263,6 +263,9 @@ pub fn lbfgs(
         fx = f_new;
         history.push(fx);
         progress.advance(1);
+        if progress.cancelled() {
+            break; // `solve` turns this into an error.
+        }
         if f_old - fx <= options.ftol * f_old.abs().max(fx.abs()).max(1.0) {
             stop = StopReason::Decrease;
             break;

@@ -229,6 +229,7 @@ pub fn solve(
         }
     };
     progress.finish();
+    progress.checkpoint()?;
     let mut evaluator = Evaluator::new(coeffs);
     let mut exists: Vec<bool> = run.x.iter().map(|&p| p >= options.threshold).collect();
     let thresholded = evaluator.binary_value(&exists);

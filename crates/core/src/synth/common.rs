@@ -12,8 +12,19 @@ use crate::check::non_negative;
 use crate::error::Remedy;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
 
-/// The most points a synthetic scene may have.
-const MAX_SCENE_POINTS: f64 = 1e9;
+/// Bytes per point of a synthetic scene, for the memory check of [`check_scene_points`]:
+/// the point (24) with room for a normal, a sensor origin or a label, and the growth of
+/// the vectors that collect them.
+const BYTES_PER_SCENE_POINT: f64 = 96.0;
+
+/// Refuses, before any point is drawn, a scene of `count` points (which may be NaN or
+/// infinite when computed from extreme options) that would not fit in the default
+/// memory budget; `remedy` is the option that makes it smaller.
+pub(crate) fn check_scene_points(what: &str, count: f64, remedy: &'static str) -> Result<usize> {
+    let limit = (crate::budget::default_memory_budget() as f64 / BYTES_PER_SCENE_POINT).floor();
+    crate::budget::check_count(what, count, limit, "points", vec![Remedy::Lower(remedy)])?;
+    Ok(count as usize)
+}
 
 /// A synthetic scene with its ground truth.
 #[derive(Debug, Clone)]
@@ -124,26 +135,10 @@ impl Density {
         match *self {
             Density::PerArea(d) => {
                 non_negative("density", d)?;
-                let n = (d * area).round();
-                if n > MAX_SCENE_POINTS {
-                    return Err(Error::OverLimit {
-                        what: format!("a density of {d} points per unit area over {area}"),
-                        need: n,
-                        limit: MAX_SCENE_POINTS,
-                        unit: crate::error::Unit::Count("points"),
-                        remedies: vec![Remedy::Lower("density")],
-                    });
-                }
-                Ok(n as usize)
+                let what = format!("a density of {d} points per unit area over {area}");
+                check_scene_points(&what, (d * area).round(), "density")
             }
-            Density::Total(n) if n as f64 > MAX_SCENE_POINTS => Err(Error::OverLimit {
-                what: "the scene".into(),
-                need: n as f64,
-                limit: MAX_SCENE_POINTS,
-                unit: crate::error::Unit::Count("points"),
-                remedies: vec![Remedy::Lower("points")],
-            }),
-            Density::Total(n) => Ok(n),
+            Density::Total(n) => check_scene_points("the scene", n as f64, "points"),
         }
     }
 }

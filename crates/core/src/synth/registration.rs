@@ -7,7 +7,9 @@ use nalgebra::{Point3, Unit, UnitQuaternion, Vector3};
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
-use super::common::{Density, LatticeHint, Noise, Piece, Scene, random_unit, sample_pieces};
+use super::common::{
+    Density, LatticeHint, Noise, Piece, Scene, check_scene_points, random_unit, sample_pieces,
+};
 use crate::atlas::{MeshShape, Shape, TriMesh};
 use crate::check::{self, non_negative, positive};
 use crate::{PointCloud, Pose, Primitive, Result};
@@ -109,7 +111,14 @@ pub fn registration(mesh: &MeshShape, params: &RegistrationParams) -> Result<Sce
         jitter: params.noise.jitter,
         drift: 0.0,
     };
-    let mut points = Vec::with_capacity(k * params.inliers + params.outliers);
+    let total = k as f64 * params.inliers as f64 + params.outliers as f64;
+    let remedy = if params.outliers > params.inliers {
+        "outliers"
+    } else {
+        "inliers"
+    };
+    check_scene_points("the registration scene", total, remedy)?;
+    let mut points = Vec::with_capacity(total as usize);
     for t in &truth {
         points.extend(sample_pieces(
             &[Piece::Prim(t.clone())],

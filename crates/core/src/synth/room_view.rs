@@ -14,12 +14,12 @@ use nalgebra::{Point3, UnitQuaternion, Vector3};
 use rand::SeedableRng;
 use rand_chacha::ChaCha8Rng;
 
-use super::common::{gauss, mesh_cdf, sample_mesh, sample_shape_local};
+use super::common::{check_scene_points, gauss, mesh_cdf, sample_mesh, sample_shape_local};
 use super::depth::{SensorParams, depth_sensor};
 use super::room::RoomGeometry;
 use crate::atlas::{PlaneShape, Shape};
 use crate::check::{self, non_negative, positive};
-use crate::{Error, PointCloud, Pose, Primitive, Result};
+use crate::{PointCloud, Pose, Primitive, Result};
 
 /// Disparity step κ of a Kinect-type sensor (1/m): depth levels `κ z²` apart.
 pub const KINECT_DISPARITY_STEP: f64 = 2.85e-3;
@@ -27,9 +27,6 @@ pub const KINECT_DISPARITY_STEP: f64 = 2.85e-3;
 /// Depths (along the optical axis) below this are not measured (metres, a Kinect's
 /// near limit).
 pub const MIN_SENSOR_DEPTH: f64 = 0.5;
-
-/// The most points a room may have.
-const MAX_ROOM_POINTS: f64 = 1e8;
 
 /// What produces the points (room frame, metres).
 #[derive(Debug, Clone, PartialEq)]
@@ -193,15 +190,11 @@ fn sample_surfaces(
 ) -> Result<(Vec<Point3<f64>>, Vec<i32>)> {
     positive("density", density)?;
     let total: f64 = surfaces.iter().map(|s| s.area() * density).sum();
-    if total > MAX_ROOM_POINTS {
-        return Err(Error::OverLimit {
-            what: format!("a room at {density} points per m²"),
-            need: total,
-            limit: MAX_ROOM_POINTS,
-            unit: crate::error::Unit::Count("points"),
-            remedies: vec![crate::error::Remedy::Lower("density")],
-        });
-    }
+    check_scene_points(
+        &format!("a room at {density} points per m²"),
+        total,
+        "density",
+    )?;
     let (mut points, mut labels) = (Vec::new(), Vec::new());
     for (i, s) in surfaces.iter().enumerate() {
         let count = (s.area() * density).round() as usize;

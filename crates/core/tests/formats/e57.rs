@@ -19,7 +19,7 @@ const OFFSET: [f64; 3] = [1_000_000.0, 2_000_000.0, 100.0];
 
 /// Writes scan A (`a`, pose: translation by [`OFFSET`]) and scan B (`b`, pose: 90° about
 /// z then (10, 0, 0); every fifth point flagged invalid).
-fn write_e57(dir: &Scratch, name: &str, a: &[Sample], b: &[Sample]) -> PathBuf {
+pub(super) fn write_e57(dir: &Scratch, name: &str, a: &[Sample], b: &[Sample]) -> PathBuf {
     let path = dir.path(name);
     let mut w = E57Writer::from_file(&path, "file-guid").expect("writer");
     let xyz_rgb = || {

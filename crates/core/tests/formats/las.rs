@@ -17,7 +17,7 @@ const OFFSET: [f64; 3] = [1_000_000.0, 2_000_000.0, 100.0];
 
 /// Writes `pts` shifted by [`OFFSET`] as LAS `version` in point format `format`; LAZ when
 /// `name` ends in `.laz`. Colours are stored 16-bit (`c × 257`) unless `eight_bit`.
-fn write_las(
+pub(super) fn write_las(
     dir: &Scratch,
     name: &str,
     pts: &[Sample],

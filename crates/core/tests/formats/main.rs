@@ -6,6 +6,7 @@
 
 mod e57;
 mod las;
+mod mutations;
 mod pcd;
 mod text;
 

@@ -49,7 +49,7 @@ fn values(s: &Sample) -> [[u8; 4]; 8] {
 }
 
 /// An ascii PCD file of `pts` (colour as PCL writes it: the packed integer).
-fn ascii(pts: &[Sample], width: usize) -> Vec<u8> {
+pub(super) fn ascii(pts: &[Sample], width: usize) -> Vec<u8> {
     let mut text = header(width, pts.len() / width, "ascii", &[]);
     for s in pts {
         let [x, y, z] = s.xyz;
@@ -60,7 +60,7 @@ fn ascii(pts: &[Sample], width: usize) -> Vec<u8> {
 }
 
 /// A binary PCD file of `pts`, with a 4-byte `_` padding field after each record.
-fn binary(pts: &[Sample], width: usize) -> Vec<u8> {
+pub(super) fn binary(pts: &[Sample], width: usize) -> Vec<u8> {
     let mut out = header(width, pts.len() / width, "binary", &[("_", "U", 1, 4)]).into_bytes();
     for s in pts {
         out.extend(values(s).iter().flatten());
@@ -81,7 +81,7 @@ fn columns(pts: &[Sample]) -> Vec<u8> {
 }
 
 /// A binary_compressed PCD file of `pts`, compressed with lzf-rust.
-fn compressed(pts: &[Sample], width: usize) -> Vec<u8> {
+pub(super) fn compressed(pts: &[Sample], width: usize) -> Vec<u8> {
     let raw = columns(pts);
     let mut packed = vec![0u8; lzf_rust::max_compressed_size(raw.len())];
     let n = lzf_rust::compress(&raw, &mut packed).expect("compress");

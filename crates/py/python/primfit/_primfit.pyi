@@ -116,6 +116,7 @@ class FitOptions:
         seed: int | None = None,
         mesh_model: str | os.PathLike[str] | tuple[_F64, _I64] | None = None,
         memory_budget: int | None = None,
+        work_budget: float | None = None,
     ) -> FitOptions: ...
 
 def fit(

@@ -70,12 +70,9 @@ impl<R: BufRead> Body<R> {
         Ok(())
     }
 
-    /// Reads past all elements of `def`.
+    /// Reads past all elements of `def`, checking them as strictly as those that are
+    /// read (value counts, types, list lengths), in ascii as in binary.
     pub fn skip_element(&mut self, def: &ElementDef) -> Result<()> {
-        if self.format == PlyFormat::Ascii && !def.properties.is_empty() {
-            // An ignored ascii element is one line; its values are not checked.
-            return (0..def.count).try_for_each(|i| self.element_line(def, i));
-        }
         self.read_element(def, |_, _: Skip| Ok(()))
     }
 

@@ -1,22 +1,10 @@
-//! The memory budget: an estimate of a fit's peak bytes, checked before the
-//! coefficients are built.
+//! The memory budget of the coefficients: an estimate of their peak bytes, checked
+//! before they are built.
 
-use crate::chamfer::{ChamferOptions, Coefficients, PointModel};
-
-/// Physical memory in bytes (Linux `/proc/meminfo`), or 8 GiB when unknown.
-pub(crate) fn physical_memory() -> u64 {
-    std::fs::read_to_string("/proc/meminfo")
-        .ok()
-        .and_then(|s| {
-            let line = s.lines().find(|l| l.starts_with("MemTotal:"))?;
-            line.split_whitespace()
-                .nth(1)?
-                .parse::<u64>()
-                .ok()
-                .map(|kb| kb * 1024)
-        })
-        .unwrap_or(8 << 30)
-}
+use super::{CandidateGeometry, ChamferOptions, Coefficients, PointModel};
+use crate::Result;
+use crate::budget;
+use crate::error::Remedy;
 
 /// Estimated **peak** bytes of a fit of `points` points under `chamfer` with `candidates`
 /// candidates (at most `max_samples` samples each), for the memory-budget check.
@@ -49,6 +37,34 @@ pub fn estimate_bytes(
     let coefficients = entries * per_entry + 8;
     let transient = (entries * per_entry + 16).max(16 * distinct);
     points as u64 * (coefficients + transient + BYTES_PER_POINT)
+}
+
+/// Refuses, before anything is built, coefficients of `points` points over `geometry`
+/// whose estimated peak ([`estimate_bytes`]) is over `memory_budget` bytes; returns the
+/// estimate otherwise. For callers that build [`Coefficients`] from their own samples
+/// (the fit checks its lattice the same way, with its own wording).
+pub fn check_memory(
+    points: usize,
+    geometry: &impl CandidateGeometry,
+    options: &ChamferOptions,
+    memory_budget: u64,
+) -> Result<u64> {
+    let max_samples = (0..geometry.len())
+        .map(|i| geometry.sample_count(i))
+        .max()
+        .unwrap_or(1);
+    let need = estimate_bytes(points, geometry.len(), max_samples, options);
+    let what = format!(
+        "the coefficients of {points} points × {} candidates",
+        geometry.len()
+    );
+    let remedies = vec![
+        Remedy::Lower("beta"),
+        Remedy::Lower("alpha"),
+        Remedy::Subsample,
+    ];
+    budget::check_memory(&what, need, memory_budget, remedies)?;
+    Ok(need)
 }
 
 /// Bytes per input point besides the coefficients in [`estimate_bytes`]: the cloud
