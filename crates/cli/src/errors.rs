@@ -50,6 +50,7 @@ const FLAGS: &[(&str, &str)] = &[
     ("outliers", "--outliers"),
     ("objects", "--objects"),
     ("translation", "--translation"),
+    ("distractors", "--distractors"),
     // register
     ("count", "--count"),
     ("fixed_translation", "--at"),
@@ -59,6 +60,7 @@ const FLAGS: &[(&str, &str)] = &[
     ("max_rounds", "--max-rounds"),
     ("min_support", "--min-support"),
     ("inlier_distance", "--inlier-distance"),
+    ("min_confidence", "--min-confidence"),
     // eval
     ("coverage_tau", "--tau"),
     // render, view

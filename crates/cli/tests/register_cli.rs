@@ -163,3 +163,94 @@ fn register_scale_recovers_a_known_scale() {
     );
     std::fs::remove_dir_all(&dir).ok();
 }
+
+/// `primfit synth partial-view` then `primfit register` with the defaults: the full pose
+/// of the object in a partial view (near side only, a plane and two other objects,
+/// uniform outliers), its calibrated existence and margin in the JSON; `--min-confidence`
+/// filters; bad confidences and `--at` without `--rotation-only` are errors.
+#[test]
+fn register_defaults_to_the_full_pose_on_a_partial_view() {
+    let dir = std::env::temp_dir().join(format!("primfit-register-view-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    let model = dir.join("object.ply");
+    io::write_mesh(&model, &asymmetric_object().mesh, None, Encoding::Ascii).unwrap();
+    let (scene, truth) = (dir.join("view.ply"), dir.join("truth.json"));
+    let status = primfit()
+        .args([
+            "--quiet",
+            "synth",
+            "partial-view",
+            "--seed",
+            "1",
+            "--translation",
+            "0.3",
+        ])
+        .args([
+            "--inliers",
+            "200",
+            "--outliers",
+            "600",
+            "--clutter-points",
+            "200",
+        ])
+        .args(["--plane", "--distractors", "2", "--jitter", "0.004"])
+        .arg("-o")
+        .arg(&scene)
+        .arg("--truth")
+        .arg(&truth)
+        .status()
+        .unwrap();
+    assert!(status.success());
+    let cloud = io::read_cloud(&scene).unwrap();
+    assert_eq!(cloud.len(), 1000);
+    assert_eq!(cloud.sensors.as_ref().map(Vec::len), Some(1000));
+    let read = |p: &std::path::Path| -> serde_json::Value {
+        serde_json::from_str(&std::fs::read_to_string(p).unwrap()).unwrap()
+    };
+    let truth = primfit_core::Pose::from_json(&read(&truth)["primitives"][0]["pose"]).unwrap();
+    let result = dir.join("result.json");
+    let register = |extra: &[&str]| {
+        primfit()
+            .args(["--quiet", "register"])
+            .arg(&scene)
+            .arg("--model")
+            .arg(&model)
+            .arg("-o")
+            .arg(&result)
+            .args(["--seed", "1"])
+            .args(extra)
+            .output()
+            .unwrap()
+    };
+    let out = register(&[]);
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let doc = read(&result);
+    let list = doc["primitives"].as_array().unwrap();
+    assert_eq!(list.len(), 1, "{list:?}");
+    let pose = primfit_core::Pose::from_json(&list[0]["pose"]).unwrap();
+    assert!(pose.rotation.angle_to(&truth.rotation).to_degrees() < 5.0);
+    assert!((pose.translation - truth.translation).norm() < 0.02 * 1.43);
+    let existence = list[0]["existence"].as_f64().unwrap();
+    assert!((0.5..=0.99).contains(&existence), "{existence}");
+    assert!(list[0]["margin"].as_f64().unwrap() > 10.0);
+    assert_eq!(doc["settings"]["translation"], true);
+    // Nothing is certain: --min-confidence 1 reports nothing.
+    let out = register(&["--min-confidence", "1"]);
+    assert!(out.status.success());
+    assert!(read(&result)["primitives"].as_array().unwrap().is_empty());
+    // Errors: one line, non-zero exit.
+    for bad in [&["--min-confidence", "2"][..], &["--at", "0,0,0"][..]] {
+        let out = register(bad);
+        assert!(!out.status.success(), "{bad:?}");
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(
+            err.contains("confidence") || err.contains("rotation-only"),
+            "{err}"
+        );
+    }
+    std::fs::remove_dir_all(&dir).ok();
+}

@@ -6,8 +6,14 @@
 //! ```text
 //! cargo run --release --example registration_bench -- [--levels 0.5,0.8,0.9,0.95]
 //!     [--seeds 20] [--inliers 100] [--translation T] [--model mesh.ply] [--scenes DIR]
-//!     [--rotation-only] [--scale LO,HI]
+//!     [--rotation-only] [--scale LO,HI] [--partial] [--clutter] [--absent]
 //! ```
+//!
+//! `--partial`: the object is seen by a depth sensor from one random viewpoint
+//! (`synth::partial_view`: self-occluded, range noise 0.3 % of the size) and `--inliers`
+//! of its pixels are kept; `--clutter` adds a plane under it and two other objects
+//! (their scan is a quarter of the outliers, the rest uniform); `--absent`: the same
+//! scenes without the object (every point an outlier; errors are then meaningless).
 //!
 //! `--translation T`: the true translation is uniform in `[-T·size, T·size]³` (size =
 //! diagonal of the model's bounding box); default 0.25. `--scale LO,HI`: the object is
@@ -19,11 +25,13 @@ use std::path::PathBuf;
 use std::str::FromStr;
 use std::time::Instant;
 
-use primfit_core::Silent;
 use primfit_core::atlas::MeshShape;
 use primfit_core::io;
 use primfit_core::register::{RegisterOptions, register};
-use primfit_core::synth::{RegistrationParams, asymmetric_object, registration};
+use primfit_core::synth::{
+    PartialViewParams, RegistrationParams, Scene, asymmetric_object, partial_view, registration,
+};
+use primfit_core::{Pose, Silent};
 use serde_json::json;
 
 fn main() {
@@ -69,60 +77,31 @@ fn main() {
     for &level in &levels {
         let outliers = (inliers as f64 * level / (1.0 - level)).round() as usize;
         for seed in first..first + seeds {
-            let params = RegistrationParams {
-                inliers,
-                outliers,
-                translation: if rotation_only { 0.0 } else { rel_t * size },
-                scale,
-                seed,
-                ..Default::default()
+            let kind = SceneKind {
+                partial: args.iter().any(|a| a == "--partial"),
+                clutter: args.iter().any(|a| a == "--clutter"),
+                absent: args.iter().any(|a| a == "--absent"),
             };
-            let scene = registration(&mesh, &params).expect("scene");
-            let truth = scene.truth[0].pose;
+            let translation = if rotation_only { 0.0 } else { rel_t * size };
+            let scene = make_scene(&mesh, kind, inliers, outliers, translation, scale, seed);
+            let truth = scene.truth.first().map_or(Pose::identity(), |t| t.pose);
             if let Some(dir) = &scenes {
-                let name = format!("scene_{level}_{seed}");
-                io::write_cloud(
-                    &dir.join(format!("{name}.ply")),
-                    &scene.cloud,
-                    io::Encoding::BinaryLittleEndian,
-                )
-                .expect("scene");
-                let t = truth.translation;
-                let r = truth.rotation.to_rotation_matrix();
-                let doc = json!({"level": level, "seed": seed, "size": size,
-                    "translation": [t.x, t.y, t.z],
-                    "rotation_matrix": r.matrix().row_iter().map(|row| row.iter().copied().collect::<Vec<f64>>()).collect::<Vec<_>>()});
-                io::write_json_atomic(&dir.join(format!("{name}.json")), &doc).expect("truth");
+                write_scene(dir, &format!("scene_{level}_{seed}"), &scene, &truth, size);
             }
-            let d = RegisterOptions::default();
-            let options = RegisterOptions {
-                translation: !rotation_only,
-                scale: scale.map(|_| (0.5, 2.0)),
-                count: Some(1),
-                seed,
-                initial_particles: parsed_or(get("--initial"), d.initial_particles, "count"),
-                particles: parsed_or(get("--particles"), d.particles, "count"),
-                kernel_start: parsed_or(get("--kernel-start"), d.kernel_start, "fraction"),
-                kernel_shrink: parsed_or(get("--kernel-shrink"), d.kernel_shrink, "factor"),
-                kernel_end: parsed_or(get("--kernel-end"), d.kernel_end, "fraction"),
-                ess: parsed_or(get("--ess"), d.ess, "share"),
-                local_moves: parsed_or(get("--local-moves"), d.local_moves, "count"),
-                translation_spread: parsed_or(get("--tspread"), d.translation_spread, "factor"),
-                screen: get("--screen").map(|s| s.parse().expect("count")),
-                vote_peaks: parsed_or(get("--vote-peaks"), d.vote_peaks, "count"),
-                basin_share: parsed_or(get("--basin-share"), d.basin_share, "share"),
-                flip_moves: parsed_or(get("--flip-moves"), d.flip_moves, "count"),
-                vote_keep: parsed_or(get("--vote-keep"), d.vote_keep, "count"),
-                vote_bin: parsed_or(get("--vote-bin"), d.vote_bin, "fraction"),
-                vote_spacing: parsed_or(get("--vote-spacing"), d.vote_spacing, "fraction"),
-                max_rounds: parsed_or(get("--max-rounds"), d.max_rounds, "count"),
-                ..d
-            };
+            let options = options(&get, rotation_only, scale, seed);
             let (t0, c0) = (Instant::now(), cpu_seconds());
             let result = register(&scene.cloud, &mesh, &options, &Silent).expect("register");
             let seconds = t0.elapsed().as_secs_f64();
             let cpu = cpu_seconds().zip(c0).map(|(b, a)| b - a);
-            let o = &result.objects[0];
+            let Some(o) = result.objects.first() else {
+                println!(
+                    "{}",
+                    json!({"method": "primfit", "level": level, "seed": seed, "found": false,
+                        "rotation_deg": 180.0, "translation_rel": 1.0, "seconds": seconds,
+                        "cpu_seconds": cpu, "existence": 0.0})
+                );
+                continue;
+            };
             let pose = o.primitive.pose;
             let rot = pose.rotation.angle_to(&truth.rotation).to_degrees();
             let trans = (pose.translation - truth.translation).norm() / (size * truth.scale);
@@ -136,14 +115,122 @@ fn main() {
                 (o.filter_pose.translation - truth.translation).norm() / (size * truth.scale);
             println!(
                 "{}",
-                json!({"method": "primfit", "level": level, "seed": seed, "rotation_deg": rot,
+                json!({"method": "primfit", "level": level, "seed": seed, "found": true,
+                    "present": !kind.absent, "rotation_deg": rot,
                     "translation_rel": trans, "seconds": seconds, "existence": o.existence,
-                    "inlier_share": o.inlier_share, "filter_rotation_deg": frot,
+                    "inlier_share": o.inlier_share, "margin": o.margin, "runner_up": o.runner_up_margin, "filter_rotation_deg": frot,
                     "filter_translation_rel": ftrans, "rounds": o.rounds.len(), "cpu_seconds": cpu,
                     "scale_rel": scale_rel})
             );
         }
     }
+}
+
+/// The registration options of one run: the defaults with `count = 1`, every answer
+/// reported (`min_confidence = 0`), and the tuning flags given.
+fn options(
+    get: &dyn Fn(&str) -> Option<String>,
+    rotation_only: bool,
+    scale: Option<(f64, f64)>,
+    seed: u64,
+) -> RegisterOptions {
+    let d = RegisterOptions::default();
+    RegisterOptions {
+        translation: !rotation_only,
+        scale: scale.map(|_| (0.5, 2.0)),
+        count: Some(1),
+        min_confidence: 0.0, // every answer is logged, right or wrong
+        seed,
+        initial_particles: parsed_or(get("--initial"), d.initial_particles, "count"),
+        particles: parsed_or(get("--particles"), d.particles, "count"),
+        kernel_start: parsed_or(get("--kernel-start"), d.kernel_start, "fraction"),
+        kernel_shrink: parsed_or(get("--kernel-shrink"), d.kernel_shrink, "factor"),
+        kernel_end: parsed_or(get("--kernel-end"), d.kernel_end, "fraction"),
+        ess: parsed_or(get("--ess"), d.ess, "share"),
+        local_moves: parsed_or(get("--local-moves"), d.local_moves, "count"),
+        translation_spread: parsed_or(get("--tspread"), d.translation_spread, "factor"),
+        screen: get("--screen").map(|s| s.parse().expect("count")),
+        vote_peaks: parsed_or(get("--vote-peaks"), d.vote_peaks, "count"),
+        basin_share: parsed_or(get("--basin-share"), d.basin_share, "share"),
+        flip_moves: parsed_or(get("--flip-moves"), d.flip_moves, "count"),
+        vote_keep: parsed_or(get("--vote-keep"), d.vote_keep, "count"),
+        vote_bin: parsed_or(get("--vote-bin"), d.vote_bin, "fraction"),
+        vote_spacing: parsed_or(get("--vote-spacing"), d.vote_spacing, "fraction"),
+        max_rounds: parsed_or(get("--max-rounds"), d.max_rounds, "count"),
+        primitive_weight: get("--primitive-weight").map(|s| s.parse().expect("weight")),
+        search_support: parsed_or(get("--search-support"), d.search_support, "points"),
+        ..d
+    }
+}
+
+/// Writes `scene`'s cloud (`name.ply`) and its truth `truth` (`name.json`: the pose
+/// and the model size `size`) to `dir`.
+fn write_scene(dir: &std::path::Path, name: &str, scene: &Scene, truth: &Pose, size: f64) {
+    io::write_cloud(
+        &dir.join(format!("{name}.ply")),
+        &scene.cloud,
+        io::Encoding::BinaryLittleEndian,
+    )
+    .expect("scene");
+    let t = truth.translation;
+    let r = truth.rotation.to_rotation_matrix();
+    let rows: Vec<Vec<f64>> = r
+        .matrix()
+        .row_iter()
+        .map(|row| row.iter().copied().collect())
+        .collect();
+    let doc = json!({"size": size, "translation": [t.x, t.y, t.z], "rotation_matrix": rows});
+    io::write_json_atomic(&dir.join(format!("{name}.json")), &doc).expect("truth");
+}
+
+/// Which scenes the bench builds.
+#[derive(Clone, Copy)]
+struct SceneKind {
+    partial: bool,
+    clutter: bool,
+    absent: bool,
+}
+
+/// One bench scene: whole-surface samples (`synth::registration`) or a partial view.
+fn make_scene(
+    mesh: &MeshShape,
+    kind: SceneKind,
+    inliers: usize,
+    outliers: usize,
+    translation: f64,
+    scale: Option<(f64, f64)>,
+    seed: u64,
+) -> Scene {
+    if !kind.partial {
+        let params = RegistrationParams {
+            inliers: if kind.absent { 0 } else { inliers },
+            outliers,
+            translation,
+            scale,
+            seed,
+            ..Default::default()
+        };
+        let mut scene = registration(mesh, &params).expect("scene");
+        if kind.absent {
+            scene.truth.clear();
+        }
+        return scene;
+    }
+    let (lo, hi) = primfit_core::bounds_of(&mesh.mesh.vertices).expect("vertices");
+    let structured = if kind.clutter { outliers / 4 } else { 0 };
+    let params = PartialViewParams {
+        inliers,
+        outliers: outliers - structured,
+        clutter_points: structured,
+        plane: kind.clutter,
+        distractors: if kind.clutter { 2 } else { 0 },
+        object: !kind.absent,
+        translation,
+        range_noise: 0.003 * (hi - lo).norm(),
+        seed,
+        ..Default::default()
+    };
+    partial_view(mesh, &params).expect("scene")
 }
 
 /// User + system CPU time of this process so far (Linux `/proc/self/stat`; `None`

@@ -46,6 +46,7 @@ fn run_one(mesh: &MeshShape, outliers: usize, translation: bool, seed: u64) -> (
     let options = RegisterOptions {
         translation,
         count: Some(1),
+        min_confidence: 0.0, // the pose is checked here, the existence elsewhere
         seed,
         ..Default::default()
     };
@@ -169,6 +170,7 @@ fn scale_is_recovered_with_the_full_pose() {
             translation: true,
             scale: Some((0.5, 2.0)),
             count: Some(1),
+            min_confidence: 0.0, // the pose is checked here, the existence elsewhere
             seed,
             ..Default::default()
         };
@@ -212,6 +214,7 @@ fn scale_is_recovered_with_the_rotation() {
     )
     .unwrap();
     let options = RegisterOptions {
+        translation: false, // rotation only
         scale: Some((0.5, 2.0)),
         count: Some(1),
         seed: 3,
@@ -401,6 +404,7 @@ fn bad_options_are_errors() {
             max_rounds: 2,
             vote_spacing,
             vote_bin,
+            min_confidence: 0.0, // report the degraded answer, however poor
             ..Default::default()
         };
         let r = register(&scene.cloud, &mesh, &options, &Silent).unwrap();

@@ -29,7 +29,8 @@ mod _primfit {
     use super::render::render;
     #[pymodule_export]
     use super::synth::{
-        synth_hallway, synth_nine_cylinders, synth_pipe, synth_registration, synth_six_in_a_row,
+        synth_hallway, synth_nine_cylinders, synth_partial_view, synth_pipe, synth_registration,
+        synth_six_in_a_row,
     };
 
     /// The library version.

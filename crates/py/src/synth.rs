@@ -8,8 +8,8 @@ use numpy::{IntoPyArray, PyArray2, PyReadonlyArray2};
 use primfit_core::atlas::MeshShape;
 use primfit_core::na::Point3;
 use primfit_core::synth::{
-    self, Density, HallwayParams, Misalignment, NineCylinderParams, Noise, PipeParams,
-    RegistrationParams, Scene, SixInARowParams, SixVariant,
+    self, Density, HallwayParams, Misalignment, NineCylinderParams, Noise, PartialViewParams,
+    PipeParams, RegistrationParams, Scene, SixInARowParams, SixVariant,
 };
 use primfit_core::{Error, Primitive, Result};
 use pyo3::prelude::*;
@@ -226,4 +226,45 @@ pub fn synth_registration<'py>(
         seed,
     };
     generate(py, || synth::registration(&mesh, &params))
+}
+
+/// A randomly posed mesh (default: the built-in asymmetric object) seen by a depth
+/// sensor from one random viewpoint, with optional structured clutter and uniform
+/// outliers (`synth::partial_view`).
+#[pyfunction]
+#[pyo3(signature = (*, mesh=None, inliers=400, outliers=3600, clutter_points=0, plane=false,
+                    distractors=0, object=true, translation=0.0, range_noise=0.0, outlier_box=1.0,
+                    seed=0))]
+#[allow(clippy::too_many_arguments)]
+pub fn synth_partial_view<'py>(
+    py: Python<'py>,
+    mesh: Option<(PyReadonlyArray2<'py, f64>, PyReadonlyArray2<'py, i64>)>,
+    inliers: usize,
+    outliers: usize,
+    clutter_points: usize,
+    plane: bool,
+    distractors: usize,
+    object: bool,
+    translation: f64,
+    range_noise: f64,
+    outlier_box: f64,
+    seed: u64,
+) -> PyResult<SceneOutput<'py>> {
+    let mesh = match mesh {
+        Some((v, f)) => MeshShape::new("python", convert::mesh(&v, &f)?).py()?,
+        None => synth::asymmetric_object(),
+    };
+    let params = PartialViewParams {
+        inliers,
+        outliers,
+        clutter_points,
+        plane,
+        distractors,
+        object,
+        translation,
+        range_noise,
+        outlier_box,
+        seed,
+    };
+    generate(py, || synth::partial_view(&mesh, &params))
 }

@@ -36,6 +36,19 @@ def test_scene_parameters():
     assert len(points) == 60 and truth[0]["type"] == "mesh"
 
 
+def test_partial_view_scene():
+    points, truth = synth.partial_view(inliers=200, outliers=300, clutter_points=100, plane=True,
+                                       distractors=2, seed=2)
+    again, _ = synth.partial_view(inliers=200, outliers=300, clutter_points=100, plane=True,
+                                  distractors=2, seed=2)
+    np.testing.assert_array_equal(points, again)
+    assert len(points) == 600 and len(truth) == 1 and truth[0]["type"] == "mesh"
+    empty, none = synth.partial_view(inliers=200, outliers=300, object=False, seed=2)
+    assert len(empty) == 300 and none == []
+    with pytest.raises(ValueError):
+        synth.partial_view(range_noise=-1.0)
+
+
 def test_bad_scene_parameters():
     with pytest.raises(ValueError, match="not both"):
         synth.hallway(density=10.0, points=100)

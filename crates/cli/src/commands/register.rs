@@ -1,5 +1,6 @@
 //! `primfit register`: find the pose(s) of a mesh in a scan (particle filter with the
-//! probabilistic chamfer as measurement, then trimmed ICP).
+//! probabilistic chamfer as measurement, then trimmed ICP), each with its calibrated
+//! existence.
 
 use std::path::PathBuf;
 
@@ -28,15 +29,24 @@ pub struct RegisterArgs {
     /// Seed for every random choice.
     #[arg(allow_hyphen_values = true, long, default_value_t = 0)]
     pub seed: u64,
-    /// Find exactly K objects [default: as many as exist].
+    /// Search for K objects (those below --min-confidence are not reported) [default:
+    /// as many as exist].
     #[arg(allow_hyphen_values = true, long, value_name = "K")]
     pub count: Option<usize>,
-    /// Also estimate the translation (else rotation only, about the mesh's origin).
+    /// Estimate the rotation only, about the mesh's origin placed at `--at` (by default
+    /// the full pose: rotation and translation).
     #[arg(long)]
+    pub rotation_only: bool,
+    /// The full pose (the default; kept for old command lines).
+    #[arg(long, hide = true, conflicts_with = "rotation_only")]
     pub translation: bool,
-    /// The fixed translation `x,y,z` when it is not estimated [default: 0,0,0].
-    #[arg(long, value_parser = parse_point, allow_hyphen_values = true, conflicts_with = "translation")]
+    /// With `--rotation-only`: where the mesh's origin is, `x,y,z` [default: 0,0,0].
+    #[arg(long, value_parser = parse_point, allow_hyphen_values = true, requires = "rotation_only")]
     pub at: Option<[f64; 3]>,
+    /// Report only objects whose calibrated existence (the probability that the object
+    /// is there at that pose) is at least this, in 0..1.
+    #[arg(allow_hyphen_values = true, long, value_name = "P")]
+    pub min_confidence: Option<f64>,
     /// Also estimate a uniform scale, within `--scale-range`.
     #[arg(long)]
     pub scale: bool,
@@ -77,7 +87,7 @@ impl RegisterArgs {
             (true, _) => bail!("--scale-range needs two numbers lo,hi"),
         };
         let options = RegisterOptions {
-            translation: self.translation,
+            translation: !self.rotation_only,
             fixed_translation: self.at.map_or(Vector3::zeros(), Vector3::from),
             scale,
             count: self.count,
@@ -86,6 +96,7 @@ impl RegisterArgs {
             max_rounds: self.max_rounds.unwrap_or(d.max_rounds),
             min_support: self.min_support.unwrap_or(d.min_support),
             inlier_distance: self.inlier_distance.unwrap_or(d.inlier_distance),
+            min_confidence: self.min_confidence.unwrap_or(d.min_confidence),
             icp: !self.no_icp,
             seed: self.seed,
             ..d
@@ -133,7 +144,7 @@ pub fn run(args: RegisterArgs, out: &Output) -> Result<()> {
                 .axis_angle()
                 .map_or((Vector3::z(), 0.0), |(a, t)| (a.into_inner(), t));
             println!(
-                "  #{k}: rotation {:.2}° about [{:.3}, {:.3}, {:.3}], translation [{:.4}, {:.4}, {:.4}], scale {:.4}; existence {:.2}, inlier share {:.3}, rms {:.4}",
+                "  #{k}: rotation {:.2}° about [{:.3}, {:.3}, {:.3}], translation [{:.4}, {:.4}, {:.4}], scale {:.4}; existence {:.2} (margin {:.1} over clutter), inlier share {:.3}, rms {:.4}",
                 angle.to_degrees(),
                 axis.x,
                 axis.y,
@@ -143,6 +154,7 @@ pub fn run(args: RegisterArgs, out: &Output) -> Result<()> {
                 p.translation.z,
                 p.scale,
                 o.existence,
+                o.margin,
                 o.inlier_share,
                 o.rms
             );

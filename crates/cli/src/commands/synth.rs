@@ -27,6 +27,10 @@ pub enum Kind {
     SixInARow,
     /// A posed mesh drowned in uniform outliers (thesis §6.3.3).
     Registration,
+    /// A posed mesh seen by a depth sensor from one random viewpoint (self-occluded,
+    /// --jitter = range noise), with optional structured clutter (--plane,
+    /// --distractors, --clutter-points) and uniform outliers; points carry the sensor.
+    PartialView,
 }
 
 /// Arguments of `primfit synth`.
@@ -111,6 +115,18 @@ pub struct SynthArgs {
     /// rotation only].
     #[arg(allow_hyphen_values = true, long, default_value_t = 0.0)]
     pub translation: f64,
+    /// Partial view: a plane under the object, facing the sensor.
+    #[arg(long)]
+    pub plane: bool,
+    /// Partial view: other objects (spheres, cylinders) beside the object.
+    #[arg(long, default_value_t = 0)]
+    pub distractors: usize,
+    /// Partial view: points kept from the scan of the plane and the other objects.
+    #[arg(long, default_value_t = 0)]
+    pub clutter_points: usize,
+    /// Partial view: leave the object out (clutter only; the truth is empty).
+    #[arg(long)]
+    pub no_object: bool,
 }
 
 fn density(points: Option<usize>, default: Density) -> Density {
@@ -228,6 +244,15 @@ fn generate(a: &SynthArgs) -> Result<(Scene, SceneFields)> {
             };
             (six.scene, fields)
         }
+        Kind::PartialView => (
+            partial_view(a)?,
+            SceneFields::Registration {
+                inliers: if a.no_object { 0 } else { a.inliers },
+                outliers: a.outliers,
+                objects: usize::from(!a.no_object),
+                translation: a.translation,
+            },
+        ),
         Kind::Registration => (
             registration(a)?,
             SceneFields::Registration {
@@ -323,6 +348,28 @@ fn registration(a: &SynthArgs) -> Result<Scene> {
         ..d
     };
     Ok(synth::registration(&mesh, &p)?)
+}
+
+/// The partial-view registration scene of `a`.
+fn partial_view(a: &SynthArgs) -> Result<Scene> {
+    let mesh = match &a.model {
+        Some(path) => MeshShape::new(path.display().to_string(), io::read_mesh(path)?)?,
+        None => synth::asymmetric_object(),
+    };
+    let d = synth::PartialViewParams::default();
+    let p = synth::PartialViewParams {
+        inliers: a.inliers,
+        outliers: a.outliers,
+        clutter_points: a.clutter_points,
+        plane: a.plane,
+        distractors: a.distractors,
+        object: !a.no_object,
+        translation: a.translation,
+        range_noise: a.jitter.unwrap_or(d.range_noise),
+        seed: a.seed,
+        ..d
+    };
+    Ok(synth::partial_view(&mesh, &p)?)
 }
 
 /// Replaces the cloud of `scene` by a depth-sensor scan of its truth.

@@ -1,8 +1,8 @@
 //! Particle-filter registration of a mesh in a cloud (thesis §6.3.3, issue 6).
 //!
-//! The particles are poses of one mesh: rotations only (about the mesh's local origin,
-//! the translation fixed), or rotations and translations, optionally with a uniform
-//! scale.
+//! The particles are poses of one mesh: rotations and translations (the default),
+//! optionally with a uniform scale, or rotations only (about the mesh's local origin,
+//! the translation fixed: [`RegisterOptions::translation`] = false).
 //!
 //! **First population.** Rotation only: prior draws. With translation search, the 6-D
 //! prior is far too large to sample a close pose from (thesis §6.3.3), so translations
@@ -53,10 +53,12 @@
 //! The best particle and the best of every other basin (or, where a basin is empty, the
 //! best particle's flip) are then settled by trimmed ICP and measured; the best is
 //! refined by trimmed ICP against the exact mesh surface (`icp.rs`), so the
-//! answer is precise, not just particle-close. Its existence is
-//! decided by a last chamfer solve over {outlier primitive, found objects, new pose};
-//! several objects are found one after another, each search conditioned on those already
-//! found (they join the background), until a new one does not exist
+//! answer is precise, not just particle-close. Its existence is a calibrated
+//! probability of the margin by which its pose beats the outlier-only explanation
+//! around its surface ([`confidence`]); an object below
+//! [`RegisterOptions::min_confidence`] is not reported. Several objects are found one
+//! after another, each search conditioned on those already found (they join the
+//! background), until a new one falls below `min_confidence`
 //! ([`RegisterOptions::count`] = `None`) or `count` objects are found.
 //!
 //! Units and conventions: lengths in scene units (model size = diagonal of the mesh's
@@ -64,6 +66,7 @@
 //! `x = s R x_local + t` (DESIGN §3); every random choice comes from one
 //! [`rand_chacha::ChaCha8Rng`] seeded with [`RegisterOptions::seed`].
 
+pub mod confidence;
 mod geometry;
 mod icp;
 mod particle_filter;
@@ -218,8 +221,7 @@ fn check_count(count: Option<usize>, points: usize, min_support: f64) -> Result<
 ///     ..Default::default()
 /// })?;
 /// let options = RegisterOptions {
-///     translation: true, // search the translation too (default: rotation only)
-///     count: Some(1),
+///     count: Some(1), // the full pose (rotation and translation) is the default
 ///     ..Default::default()
 /// };
 /// let found = register(&scene.cloud, &mesh, &options, &Silent)?;
@@ -242,25 +244,25 @@ pub fn register(
     let wanted = options.count.unwrap_or(options.max_objects);
     progress.start("register", (wanted * options.max_rounds) as u64);
     let mut objects: Vec<FoundObject> = Vec::new();
+    // The points no object found so far explains: each new object's margin is measured
+    // on them, so a second copy of a found object has no support.
+    let mut unexplained = cloud.points.clone();
     for _ in 0..wanted {
         let found: Vec<Pose> = objects.iter().map(|o| o.primitive.pose).collect();
         let filtered = context.run(&found, &mut rng, progress)?;
-        let object = settle_object(&context, cloud, mesh, &flips, &found, filtered, &mut rng)?;
-        if options.count.is_none() && object.existence < options.threshold {
-            break;
+        let object = settle_object(&context, cloud, &unexplained, mesh, &flips, filtered);
+        if object.existence < options.min_confidence {
+            if options.count.is_none() {
+                break;
+            }
+            // Asked for `count` objects: keep searching, but do not report this one.
+            continue;
         }
+        let inlier = options.inlier_distance * size * object.primitive.pose.scale;
+        unexplained.retain(|y| object.primitive.distance(y) > inlier);
         objects.push(object);
     }
     progress.finish();
-    // Final joint existence of everything found.
-    if objects.len() > 1 {
-        let poses: Vec<Pose> = objects.iter().map(|o| o.primitive.pose).collect();
-        let kernel = options.kernel_end * size;
-        let m = context.measure(&[], poses, kernel, options.min_support, true, &mut rng)?;
-        for (o, p) in objects.iter_mut().zip(m.existence) {
-            o.existence = p;
-        }
-    }
     Ok(Registration {
         objects,
         model_size: size,
@@ -268,58 +270,76 @@ pub fn register(
     })
 }
 
-/// The object the filter's answer `filtered` stands for, next to those `found`: the
-/// best of its symmetry tries ([`symmetry_tries`]) by the measurement at the last
-/// kernel, refined by trimmed ICP against the exact surface ([`refine_object`]), with
-/// its existence in a polished chamfer solve over the outlier primitive, `found` and it.
+/// The object the filter's answer `filtered` stands for: each of its symmetry tries
+/// ([`symmetry_tries`]) refined by trimmed ICP against the exact surface
+/// ([`refine_object`]), the one with the largest margin over the outlier-only
+/// explanation of the points `unexplained` by the objects found before kept
+/// ([`confidence`]), with its calibrated existence (which also weighs how close the
+/// best other try came).
 fn settle_object(
     context: &Context,
     cloud: &PointCloud,
+    unexplained: &[Point3<f64>],
     mesh: &MeshShape,
     flips: &[Pose],
-    found: &[Pose],
     filtered: FilterResult,
-    rng: &mut ChaCha8Rng,
-) -> Result<FoundObject> {
+) -> FoundObject {
     let options = context.options;
     let scale = filtered.pose.scale;
     let kernel = options.kernel_end * context.size * scale;
     let tries = symmetry_tries(context, cloud, mesh, flips, &filtered);
-    let m = context.measure(
-        found,
-        tries.clone(),
-        kernel,
-        options.search_support,
-        false,
-        rng,
-    )?;
-    let pick = (0..tries.len())
-        .max_by(|&a, &b| m.score[a].total_cmp(&m.score[b]).then(b.cmp(&a)))
+    let settled: Vec<(icp::IcpResult, f64)> = tries
+        .iter()
+        .map(|t| {
+            let refined = refine_object(context, cloud, mesh, *t, kernel, scale);
+            let margin = margin_of(context, unexplained, &refined.pose);
+            (refined, margin)
+        })
+        .collect();
+    let pick = (0..settled.len())
+        .max_by(|&a, &b| settled[a].1.total_cmp(&settled[b].1).then(b.cmp(&a)))
         .unwrap_or(0);
-    let refined = refine_object(context, cloud, mesh, tries[pick], kernel, scale);
-    // Existence of the new object next to the outlier primitive and those found.
-    let m = context.measure(
-        found,
-        vec![refined.pose],
-        kernel,
-        options.min_support,
-        true,
-        rng,
-    )?;
-    Ok(FoundObject {
+    let chosen = settled[pick].0.pose;
+    let runner_up = (0..settled.len())
+        .filter(|&k| !same_pose(context, &chosen, &settled[k].0.pose))
+        .map(|k| settled[k].1)
+        .fold(f64::NEG_INFINITY, f64::max);
+    let (refined, margin) = settled.into_iter().nth(pick).expect("one try at least");
+    FoundObject {
         primitive: Primitive::new(context.shape.clone(), refined.pose),
-        existence: m.existence[0],
+        existence: confidence::existence(margin, runner_up),
+        margin,
+        runner_up_margin: runner_up,
         inlier_share: refined.inliers.len() as f64 / cloud.len() as f64,
         rms: refined.rms,
         filter_pose: filtered.pose,
         rounds: filtered.rounds,
-    })
+    }
+}
+
+/// Whether two poses are the same answer: rotations within [`SAME_ROTATION_DEG`] and
+/// translations within the inlier distance × [`confidence::SHELL_FACTOR`].
+fn same_pose(context: &Context, a: &Pose, b: &Pose) -> bool {
+    let reach = confidence::SHELL_FACTOR * context.options.inlier_distance * context.size;
+    a.rotation.angle_to(&b.rotation) < SAME_ROTATION_DEG.to_radians()
+        && (a.translation - b.translation).norm() < reach * a.scale
+}
+
+/// Rotations closer than this (degrees) are one answer (see [`same_pose`]).
+const SAME_ROTATION_DEG: f64 = 5.0;
+
+/// The margin of the mesh at `pose` over the outlier-only explanation of `points`
+/// ([`confidence::margin`]) at the inlier distance.
+fn margin_of(context: &Context, points: &[Point3<f64>], pose: &Pose) -> f64 {
+    let primitive = Primitive::new(context.shape.clone(), *pose);
+    let inlier = context.options.inlier_distance * context.size * pose.scale;
+    confidence::margin(confidence::support(points, &primitive, inlier))
 }
 
 /// Approximate symmetries: the filter's best pose turned by π about each principal
 /// axis of the model (through the rotation pivot) — or where the filter kept a particle
-/// in that basin, its best there — each polished by ICP at the kernel (with
-/// [`RegisterOptions::icp`]); the first is the best pose itself.
+/// in that basin, its best there — each polished by ICP from the first kernel down to
+/// the last (with [`RegisterOptions::icp`]); the first is the best pose itself.
 fn symmetry_tries(
     context: &Context,
     cloud: &PointCloud,

@@ -12,14 +12,17 @@ use crate::check::{self, Interval};
 /// bounding box, scene units after the pose's scale).
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct RegisterOptions {
-    /// Estimate the translation (else it is [`RegisterOptions::fixed_translation`]).
+    /// Estimate the translation (default); `false`: rotation only, about the mesh's
+    /// origin placed at [`RegisterOptions::fixed_translation`].
     pub translation: bool,
     /// The translation when it is not estimated (scene units).
     #[serde(skip)]
     pub fixed_translation: Vector3<f64>,
     /// Estimate a uniform scale within this range (`None` = scale 1).
     pub scale: Option<(f64, f64)>,
-    /// Find exactly this many objects; `None` = as many as exist (at most `max_objects`).
+    /// Search for this many objects, one after another (those below
+    /// [`RegisterOptions::min_confidence`] are searched for but not reported); `None` =
+    /// as many as exist (at most `max_objects`).
     pub count: Option<usize>,
     /// Upper bound on the objects found automatically.
     pub max_objects: usize,
@@ -104,8 +107,11 @@ pub struct RegisterOptions {
     /// Inlier distance: a cloud point within it of a found surface is that object's
     /// inlier (ICP's last correspondence distance); fraction of the model size.
     pub inlier_distance: f64,
-    /// Existence threshold of a found object.
+    /// Existence threshold of the chamfer solves inside the search (polish).
     pub threshold: f64,
+    /// Smallest calibrated existence of a reported object (0‥1): objects below it are
+    /// not reported, and the search for more objects stops at the first one below it.
+    pub min_confidence: f64,
     /// Seed of every random choice.
     pub seed: u64,
 }
@@ -120,7 +126,7 @@ pub const MAX_ROUNDS: usize = 10_000;
 impl Default for RegisterOptions {
     fn default() -> Self {
         RegisterOptions {
-            translation: false,
+            translation: true,
             fixed_translation: Vector3::zeros(),
             scale: None,
             count: None,
@@ -155,6 +161,7 @@ impl Default for RegisterOptions {
             icp: true,
             inlier_distance: 0.01,
             threshold: 0.5,
+            min_confidence: 0.5,
             seed: 0,
         }
     }
@@ -183,6 +190,7 @@ impl RegisterOptions {
         check::in_interval("basin_share", self.basin_share, Interval::closed(0.0, 0.3))?;
         check::in_interval("ess", self.ess, Interval::open_closed(0.0, 1.0))?;
         check::in_interval("threshold", self.threshold, Interval::UNIT)?;
+        check::in_interval("min_confidence", self.min_confidence, Interval::UNIT)?;
         if let Some(w) = self.primitive_weight {
             check::non_negative("primitive_weight", w)?;
         }

@@ -13,8 +13,17 @@ use crate::{Pose, Primitive};
 pub struct FoundObject {
     /// The posed mesh.
     pub primitive: Primitive,
-    /// Its existence probability in the final chamfer solve.
+    /// The calibrated probability that it is there at this pose (0‥1, at most
+    /// [`MAX_EXISTENCE`](super::confidence::MAX_EXISTENCE)).
     pub existence: f64,
+    /// The margin by which its pose beats the outlier-only explanation around its
+    /// surface: the signed root of a log-likelihood ratio, about N(0, 1) for clutter
+    /// ([`margin`](super::confidence::margin)).
+    pub margin: f64,
+    /// The margin of the best other symmetry try (the pose turned by π about a principal
+    /// axis, refined): how nearly another pose explains the points as well
+    /// (−∞ when there was none).
+    pub runner_up_margin: f64,
     /// Share of all cloud points within the inlier distance of its surface (0‥1).
     pub inlier_share: f64,
     /// RMS surface distance of those inliers (scene units).
@@ -38,7 +47,7 @@ pub struct Registration {
 
 impl Registration {
     /// `result.json` (DESIGN §3): one `"type": "mesh"` entry per object found, with its
-    /// pose, `existence` and `inlier_share`.
+    /// pose, `existence`, `inlier_share` and `margin`.
     pub fn to_json(&self, settings: Value, metrics: Value) -> Value {
         /// One object's entry: the primitive's, with its `inlier_share`.
         #[derive(Serialize)]
@@ -46,6 +55,7 @@ impl Registration {
             #[serde(flatten)]
             entry: PrimitiveEntry<'a>,
             inlier_share: f64,
+            margin: f64,
         }
         let primitives = self
             .objects
@@ -56,6 +66,7 @@ impl Registration {
                     existence: o.existence,
                 },
                 inlier_share: o.inlier_share,
+                margin: o.margin,
             })
             .collect();
         let doc = ResultDoc {

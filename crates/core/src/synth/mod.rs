@@ -6,7 +6,8 @@
 //! lives, so a test can build the matching candidate set.
 //!
 //! [`depth_sensor`] instead ray-casts a truth from sensor poses (multi-frame scans with
-//! sensor origins, for the ray likelihood). [`room`] is a furnished room whose truth is
+//! sensor origins, for the ray likelihood); [`partial_view`] uses it for registration
+//! scenes seen from one viewpoint (a mesh's near side among clutter). [`room`] is a furnished room whose truth is
 //! its visible faces as bounded planes and its tubes as cylinders, seen area-uniformly
 //! or by a depth camera with quantised depth ([`RoomScene`]; not a lattice scene).
 //!
@@ -31,6 +32,7 @@ mod common;
 mod depth;
 mod hallway;
 mod nine;
+mod partial_view;
 mod pipe;
 mod registration;
 mod room;
@@ -45,6 +47,7 @@ pub use common::{
 pub use depth::{SensorParams, depth_sensor, look_at, orbit_poses, walk_poses};
 pub use hallway::{HallwayParams, hallway};
 pub use nine::{NineCylinderParams, nine_cylinders, nine_cylinders_candidates};
+pub use partial_view::{PartialViewParams, partial_view};
 pub use pipe::{PipeParams, pipe};
 pub use registration::{RegistrationParams, asymmetric_object, registration};
 pub use room::{Furniture, RoomGeometry, Tube};

@@ -55,7 +55,7 @@ impl Default for RegistrationParams {
 }
 
 /// A uniformly random rotation (quaternion from a uniform point on S³).
-fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
+pub(super) fn random_rotation(rng: &mut ChaCha8Rng) -> UnitQuaternion<f64> {
     let axis = Unit::new_normalize(random_unit(rng));
     // Haar measure: angle density ∝ sin²(θ/2) on [0, π]; sample by rejection.
     let angle = loop {

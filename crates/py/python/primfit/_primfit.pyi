@@ -27,6 +27,7 @@ __all__ = [
     "synth_hallway",
     "synth_nine_cylinders",
     "synth_pipe",
+    "synth_partial_view",
     "synth_registration",
     "synth_six_in_a_row",
     "write_mesh",
@@ -153,6 +154,11 @@ def synth_six_in_a_row(
 def synth_registration(
     *, mesh: tuple[_F64, _I64] | None = None, inliers: int = 100, outliers: int = 1900, translation: float = 0.0,
     scale: tuple[float, float] | None = None, outlier_box: float = 1.0, jitter: float = 0.0, seed: int = 0,
+) -> _Scene: ...
+def synth_partial_view(
+    *, mesh: tuple[_F64, _I64] | None = None, inliers: int = 400, outliers: int = 3600, clutter_points: int = 0,
+    plane: bool = False, distractors: int = 0, object: bool = True, translation: float = 0.0,
+    range_noise: float = 0.0, outlier_box: float = 1.0, seed: int = 0,
 ) -> _Scene: ...
 
 def read_ply(path: str | os.PathLike[str]) -> dict[str, npt.NDArray[np.generic]]: ...

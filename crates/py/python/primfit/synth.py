@@ -21,7 +21,7 @@ import numpy.typing as npt
 from . import _primfit
 from ._convert import _ints, _points
 
-__all__ = ["hallway", "nine_cylinders", "pipe", "registration", "six_in_a_row"]
+__all__ = ["hallway", "nine_cylinders", "partial_view", "pipe", "registration", "six_in_a_row"]
 
 Truth = list[dict[str, Any]]
 
@@ -160,5 +160,39 @@ def registration(
         _primfit.synth_registration(
             mesh=m, inliers=inliers, outliers=outliers, translation=translation, scale=scale,
             outlier_box=outlier_box, jitter=jitter, seed=seed,
+        )
+    )
+
+
+def partial_view(
+    *,
+    mesh: tuple[npt.ArrayLike, npt.ArrayLike] | None = None,
+    inliers: int = 400,
+    outliers: int = 3600,
+    clutter_points: int = 0,
+    plane: bool = False,
+    distractors: int = 0,
+    object: bool = True,
+    translation: float = 0.0,
+    range_noise: float = 0.0,
+    outlier_box: float = 1.0,
+    seed: int = 0,
+) -> tuple[np.ndarray, Truth]:
+    """A randomly posed mesh seen by a depth sensor from one random viewpoint.
+
+    Only the object's near side is seen (self-occluded, ``range_noise`` along each ray);
+    ``inliers`` of its pixels are kept, then ``clutter_points`` of the scan of a plane
+    under it (``plane``) and ``distractors`` other objects, then ``outliers`` uniform
+    points in a cube of half-side ``outlier_box`` bounding radii around it. ``object=False``
+    leaves the object out (empty truth). ``mesh`` as in :func:`registration`.
+    """
+    m = None
+    if mesh is not None:
+        m = (_points("mesh vertices", mesh[0]), _ints("mesh faces", mesh[1], 2))
+    return _scene(
+        _primfit.synth_partial_view(
+            mesh=m, inliers=inliers, outliers=outliers, clutter_points=clutter_points, plane=plane,
+            distractors=distractors, object=object, translation=translation, range_noise=range_noise,
+            outlier_box=outlier_box, seed=seed,
         )
     )
