@@ -170,6 +170,9 @@ pub struct ChamferDoc {
     pub threshold: f64,
     /// [`SolverOptions::polish`].
     pub polish: bool,
+    /// [`Settings::free_space`] (absent in older results: off).
+    #[serde(default)]
+    pub free_space: bool,
 }
 
 /// `settings.ray`: the mcmc method's [`RayModel`].
@@ -313,6 +316,7 @@ impl SettingsDoc {
             seed: self.seed,
             memory_budget: super::settings::default_memory_budget(),
             mesh: self.mesh_model.as_deref().map(load).transpose()?,
+            free_space: self.chamfer.as_ref().is_some_and(|c| c.free_space),
             method,
         };
         Ok((settings, run))
@@ -486,6 +490,7 @@ impl ChamferDoc {
             search_points: s.solver.search_points,
             threshold: s.solver.threshold,
             polish: s.solver.polish,
+            free_space: s.free_space,
         }
     }
 

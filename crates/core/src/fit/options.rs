@@ -101,6 +101,10 @@ pub struct FitOptions {
     /// Upper bound on the estimated peak memory of the fit ([`super::estimate_bytes`]),
     /// bytes (default: [`DEFAULT_MEMORY_SHARE`] of the machine's memory).
     pub memory_budget: Option<u64>,
+    /// Charge candidates for the rays that cross them in front of their points
+    /// ([`crate::ray::FreeSpace`]); `None` (default): on exactly when the cloud has
+    /// sensor origins; `Some(true)` without them is an error.
+    pub free_space: Option<bool>,
     /// Seed for every random choice (the chamfer fit itself is deterministic).
     pub seed: u64,
 }
@@ -127,6 +131,7 @@ impl Default for FitOptions {
             solver: SolverOptions::default(),
             method: MethodOptions::default(),
             memory_budget: None,
+            free_space: None,
             seed: DEFAULT_SEED,
         }
     }

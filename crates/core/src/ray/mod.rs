@@ -27,6 +27,7 @@
 //! assert!(truth > nearest);
 //! ```
 
+mod free_space;
 mod incremental;
 mod likelihood;
 mod mcmc;
@@ -35,6 +36,9 @@ mod raytree;
 #[cfg(test)]
 pub(crate) mod tests;
 
+pub use free_space::{
+    FreeSpace, MAX_FREE_SPACE_RAYS, crossing_cost, marched_free_space, marches_into,
+};
 pub use incremental::SceneState;
 pub use likelihood::{RayModel, crossing_terms, log_upper_tail, ray_log_likelihood};
 pub use mcmc::{McmcOptions, McmcResult, flip_rates, sample};

@@ -32,6 +32,7 @@ mod depth;
 mod hallway;
 mod nine;
 mod pipe;
+mod ray_scenes;
 mod registration;
 mod room;
 mod room_presets;
@@ -46,6 +47,7 @@ pub use depth::{SensorParams, depth_sensor, look_at, orbit_poses, walk_poses};
 pub use hallway::{HallwayParams, hallway};
 pub use nine::{NineCylinderParams, nine_cylinders, nine_cylinders_candidates};
 pub use pipe::{PipeParams, pipe};
+pub use ray_scenes::{RAY_SCENE_RANGE_NOISE, RAY_SCENES, RayScene, ray_scene};
 pub use registration::{RegistrationParams, asymmetric_object, registration};
 pub use room::{Furniture, RoomGeometry, Tube};
 pub use room_presets::{

@@ -115,6 +115,7 @@ class FitOptions:
         seed: int | None = None,
         mesh_model: str | os.PathLike[str] | tuple[_F64, _I64] | None = None,
         memory_budget: int | None = None,
+        free_space: bool | None = None,
     ) -> FitOptions: ...
 
 def fit(
