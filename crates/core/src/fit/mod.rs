@@ -38,6 +38,8 @@
 mod budget;
 mod compact;
 pub(crate) mod document;
+#[cfg(test)]
+mod free_space_tests;
 mod gaps;
 mod mcmc;
 mod options;

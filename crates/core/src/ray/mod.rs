@@ -28,11 +28,14 @@
 //! ```
 
 mod free_space;
+#[cfg(test)]
+mod free_space_tests;
 mod incremental;
 mod likelihood;
 mod mcmc;
 mod prior;
 mod raytree;
+mod unseen;
 #[cfg(test)]
 pub(crate) mod tests;
 
@@ -44,3 +47,4 @@ pub use likelihood::{RayModel, crossing_terms, log_upper_tail, ray_log_likelihoo
 pub use mcmc::{McmcOptions, McmcResult, flip_rates, sample};
 pub use prior::{PriorOptions, existence_prior};
 pub use raytree::{Entry, RayTable, RayTree, Rays, SEEN_SIGMAS, naive_log_likelihood};
+pub use unseen::{UNOBSERVED_SAMPLE_NATS, occupancy_prior, unobserved_samples};
