@@ -10,11 +10,11 @@
 //! ```
 use std::time::Instant;
 
+use primfit_core::fit::FrameChoice;
 use primfit_core::fit::{FitOptions, McmcFitOptions, MethodOptions, fit};
 use primfit_core::metrics::{MetricsOptions, evaluate, point_to_model_distances};
 use primfit_core::na::Point3;
 use primfit_core::synth::{RAY_SCENES, ray_scene};
-use primfit_core::fit::FrameChoice;
 use primfit_core::{Primitive, Silent};
 
 /// A point within this of the model is covered (m).

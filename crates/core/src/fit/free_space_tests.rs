@@ -92,7 +92,9 @@ fn loss_with_free_space_has_the_exact_gradient_and_adds_the_closed_form() {
         );
         // Its free-space part is w_point · f_i.
         let f_part = grad[i] - g_plain[i];
-        assert!((f_part - chamfer.point_weight * free.cost[i]).abs() <= 1e-9 * f_part.abs().max(1.0));
+        assert!(
+            (f_part - chamfer.point_weight * free.cost[i]).abs() <= 1e-9 * f_part.abs().max(1.0)
+        );
     }
 }
 
@@ -106,7 +108,9 @@ fn free_space_is_on_exactly_when_the_cloud_has_sensor_origins() {
     let bare = crate::PointCloud::from_points(scene.cloud.points.clone());
     let without = fit(&bare, &lattice(None), &Silent).unwrap();
     assert!(!without.settings.free_space);
-    let err = fit(&bare, &lattice(Some(true)), &Silent).unwrap_err().to_string();
+    let err = fit(&bare, &lattice(Some(true)), &Silent)
+        .unwrap_err()
+        .to_string();
     assert!(err.contains("sensor") && err.contains("free"), "{err}");
     let off = fit(&scene.cloud, &lattice(Some(false)), &Silent).unwrap();
     assert!(!off.settings.free_space);
@@ -129,7 +133,10 @@ fn ray_cast_scenes_fit_without_invented_surface_with_and_without_free_space() {
                 mp <= 1.5 * truth_mp,
                 "{name}, free space {free_space}: model→point {mp} vs the truth's {truth_mp}"
             );
-            assert!(covered > 0.9, "{name}, free space {free_space}: coverage {covered}");
+            assert!(
+                covered > 0.9,
+                "{name}, free space {free_space}: coverage {covered}"
+            );
             coverage.push(covered);
         }
         assert!(coverage[1] >= coverage[0] - 0.01, "{name}: {coverage:?}");
@@ -151,7 +158,10 @@ fn mcmc_on_a_ray_cast_room_invents_no_surface() {
     let result = fit(&scene.cloud, &options, &Silent).unwrap();
     let (truth_mp, _) = measures(points, &scene.truth);
     let (mp, covered) = measures(points, &result.primitives);
-    assert!(mp <= 1.5 * truth_mp, "model→point {mp} vs the truth's {truth_mp}");
+    assert!(
+        mp <= 1.5 * truth_mp,
+        "model→point {mp} vs the truth's {truth_mp}"
+    );
     assert!(covered > 0.97, "coverage {covered}");
 }
 

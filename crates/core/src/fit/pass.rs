@@ -81,7 +81,10 @@ pub(super) fn charge_free_space(
     chamfer: &ChamferOptions,
     g: &mut [f64],
 ) -> Result<FreeSpace> {
-    check::positive("primitive_weight (with free space)", chamfer.primitive_weight)?;
+    check::positive(
+        "primitive_weight (with free space)",
+        chamfer.primitive_weight,
+    )?;
     let rays = Rays::from_cloud(cloud)?;
     let free = FreeSpace::build(&rays, candidates, chamfer.cap)?;
     let scale = chamfer.point_weight / chamfer.primitive_weight;

@@ -47,7 +47,11 @@ fn closed_form_equals_brute_force_ray_marching() {
     let d_cap = 0.25;
     let free = FreeSpace::build(&rays, &candidates, d_cap).unwrap();
     assert_eq!(free.scale, 1.0);
-    assert!(free.crossings.iter().sum::<usize>() > 100, "{:?}", free.crossings);
+    assert!(
+        free.crossings.iter().sum::<usize>() > 100,
+        "{:?}",
+        free.crossings
+    );
     let mut rng = ChaCha8Rng::seed_from_u64(2);
     for trial in 0..4 {
         let exists: Vec<bool> = (0..candidates.len())
@@ -131,4 +135,3 @@ fn bad_input_is_an_error() {
     assert!(free.value(&[0.5]).is_err());
     assert!(marched_free_space(&rays, &candidates, &[true], 0.25, 1e-7).is_err());
 }
-

@@ -35,9 +35,9 @@ mod likelihood;
 mod mcmc;
 mod prior;
 mod raytree;
-mod unseen;
 #[cfg(test)]
 pub(crate) mod tests;
+mod unseen;
 
 pub use free_space::{
     FreeSpace, MAX_FREE_SPACE_RAYS, crossing_cost, marched_free_space, marches_into,

@@ -65,7 +65,14 @@ pub fn ray_scene(name: &str, columns: usize, rows: usize, seed: u64) -> Result<R
 
 /// The rectangle `lo..hi` (one coordinate equal: the plane `axis = lo[axis]`), facing +axis.
 fn rect(axis: usize, lo: [f64; 3], hi: [f64; 3]) -> Result<Primitive> {
-    face(axis, 1.0, lo[axis], &Vector3::from(lo), &Vector3::from(hi), &[])
+    face(
+        axis,
+        1.0,
+        lo[axis],
+        &Vector3::from(lo),
+        &Vector3::from(hi),
+        &[],
+    )
 }
 
 /// A 4 × 3 m room, walls 2 m high, no ceiling.
