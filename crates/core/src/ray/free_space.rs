@@ -69,7 +69,9 @@ impl FreeSpace {
             .into_iter()
             .enumerate()
             .map(|(f, ids)| {
-                let used = ids.into_iter().filter(|j| *j as usize % stride == 0);
+                let used = ids
+                    .into_iter()
+                    .filter(|j| (*j as usize).is_multiple_of(stride));
                 RayTree::new(rays.frames[f], rays, used.collect())
             })
             .collect();
