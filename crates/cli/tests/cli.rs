@@ -518,6 +518,7 @@ fn bad_flags_fail_with_one_line_naming_the_flag_and_write_nothing() {
         (vec!["--weights", "1,nan"], "--weights"),
         (vec!["--origin", "1e15,0,0"], "--origin"),
         (vec!["--method", "mcmc"], "mcmc"),
+        (vec!["--free-space"], "sensor"),
     ];
     for (extra, needle) in cases {
         fit_fails_cleanly(&dir, "scene.ply", &extra, needle);

@@ -49,7 +49,7 @@ impl PyFitOptions {
         cap=None, weights=None, method=None, steps=None, burn_in=None, noise_rate=None,
         sigma=None, prior=None, parameterization=None, max_iterations=None, search_points=None,
         polish=None, seed=None, mesh_model=None, memory_budget=None,
-        work_budget=None
+        work_budget=None, free_space=None
     ))]
     #[allow(clippy::too_many_arguments)]
     fn new(
@@ -83,6 +83,7 @@ impl PyFitOptions {
         mesh_model: Option<&Bound<'_, PyAny>>,
         memory_budget: Option<u64>,
         work_budget: Option<f64>,
+        free_space: Option<bool>,
     ) -> PyResult<Self> {
         let d = FitOptions::default();
         let weights = convert::floats::<2>("weights", weights)?;
@@ -128,6 +129,7 @@ impl PyFitOptions {
             method: method_options(method, mcmc)?.unwrap_or(d.method),
             memory_budget,
             work_budget,
+            free_space: free_space.or(d.free_space),
             seed: seed.unwrap_or(d.seed),
         }))
     }

@@ -238,6 +238,22 @@ def test_mcmc_on_a_scanned_dict_as_read_ply_returns(tmp_path):
     assert "beta" not in s and result.primitives
 
 
+def test_free_space_is_on_exactly_with_sensor_origins():
+    points = corner()
+    # One sensor above the corner's open side: every ray reaches its point unobstructed.
+    sensors = np.tile([1.5, 1.5, 1.5], (len(points), 1))
+    scan = {"points": points, "sensors": sensors}
+    on = primfit.fit(scan, size=1.0, **LATTICE)
+    assert on.settings["free_space"] is True and on.primitives
+    off = primfit.fit(scan, size=1.0, free_space=False, **LATTICE)
+    assert off.settings["free_space"] is False
+    # The true squares block no ray: the same fit either way.
+    assert sorted(map(key, on.primitives)) == sorted(map(key, off.primitives))
+    assert primfit.fit(points, size=1.0, **LATTICE).settings["free_space"] is False
+    with pytest.raises(ValueError, match="sensor"):
+        primfit.fit(points, size=1.0, free_space=True, **LATTICE)
+
+
 def test_fit_result_reads_back_from_json(tmp_path):
     result = primfit.fit(corner(), size=1.0, **LATTICE)
     for source in (result.to_json(), json.loads(result.to_json())):

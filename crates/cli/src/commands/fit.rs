@@ -116,6 +116,13 @@ pub struct FitArgs {
     /// Skip the discrete polish after thresholding.
     #[arg(long)]
     pub no_polish: bool,
+    /// Charge each candidate for the rays that cross it in front of their points (needs
+    /// sensor origins) [default: on when the scene has sensor_x/y/z].
+    #[arg(long, overrides_with = "no_free_space")]
+    pub free_space: bool,
+    /// Do not charge free space, even when the scene has sensor origins.
+    #[arg(long, overrides_with = "free_space")]
+    pub no_free_space: bool,
     /// mcmc: Metropolis–Hastings proposals after burn-in [default: max(1000, 20 × candidates)].
     #[arg(allow_hyphen_values = true, long)]
     pub steps: Option<usize>,
@@ -209,6 +216,11 @@ impl FitArgs {
             method,
             memory_budget: None,
             work_budget: self.work_budget,
+            free_space: match (self.free_space, self.no_free_space) {
+                (true, _) => Some(true),
+                (_, true) => Some(false),
+                _ => defaults.free_space,
+            },
             seed: self.seed,
         })
     }

@@ -12,6 +12,7 @@ use crate::chamfer::ChamferOptions;
 use crate::detect::{DetectOptions, Detection, detect};
 use crate::error::{Remedy, Unit};
 use crate::progress::Progress;
+use crate::ray::{FreeSpace, Rays};
 use crate::solve::{Solution, SolverOptions};
 use crate::spatial::PointIndex;
 use crate::{Error, Primitive, Result};
@@ -52,6 +53,9 @@ pub struct CompactOptions {
     pub weights: Option<[f64; 2]>,
     /// The solver of the existence decision.
     pub solver: SolverOptions,
+    /// The scan's rays, when candidates are to pay for the rays that cross them in front
+    /// of their points ([`FreeSpace`]); `None`: no free-space cost.
+    pub free_space: Option<Rays>,
 }
 
 /// What [`compact_model`] returns.
@@ -118,10 +122,18 @@ pub fn compact_model(
             remedies: vec![Remedy::Raise("sample_spacing"), Remedy::Subsample],
         });
     }
-    let cost: Vec<f64> = candidates
+    let mut cost: Vec<f64> = candidates
         .iter()
         .map(|p| primitive_cost(p, noise, points.len()))
         .collect();
+    if let Some(rays) = &options.free_space {
+        // The loss gains `w_point · Σ_i p_i f_i`; `cost` enters it unweighted.
+        let free = FreeSpace::build(rays, &candidates, cap * cap)?;
+        let point_weight = options.weights.map_or(1.0, |w| w[1]);
+        for (c, f) in cost.iter_mut().zip(&free.cost) {
+            *c += point_weight * f;
+        }
+    }
     let existence_options = ExistenceOptions {
         sample_spacing,
         chamfer: ChamferOptions {

@@ -4,11 +4,12 @@
 use nalgebra::{Point3, UnitQuaternion};
 
 use super::options::FitOptions;
-use super::settings::{CompactSettings, MethodSettings};
+use super::settings::{CompactSettings, MethodSettings, resolve_free_space};
 use super::{FitResult, FitStats, Settings};
 use crate::chamfer::ChamferOptions;
 use crate::compact::{CompactModel, CompactOptions, EXISTENCE_BETA, compact_model};
 use crate::progress::Progress;
+use crate::ray::Rays;
 use crate::spatial::PointIndex;
 use crate::{Error, PointCloud, Result, check};
 
@@ -32,10 +33,15 @@ pub(super) fn fit_compact(
         sample_spacing: options.sample_spacing,
         weights: Some([options.primitive_weight, options.point_weight]),
         solver: options.solver.clone(),
+        free_space: match resolve_free_space(options.free_space, cloud)? {
+            true => Some(Rays::from_cloud(cloud)?),
+            false => None,
+        },
         ..Default::default()
     };
+    let free_space = compact.free_space.is_some();
     let model = compact_model(&cloud.points, index, &compact, progress)?;
-    let settings = compact_settings(options, &model);
+    let settings = compact_settings(options, &model, free_space);
     let stats = FitStats {
         points: cloud.len(),
         lattice_candidates: model.proposed,
@@ -79,8 +85,9 @@ fn check_lattice_options_unset(options: &FitOptions) -> Result<()> {
     Ok(())
 }
 
-/// The settings a compact model was made with.
-fn compact_settings(options: &FitOptions, model: &CompactModel) -> Settings {
+/// The settings a compact model was made with (`free_space`: whether rays charged
+/// the candidates).
+fn compact_settings(options: &FitOptions, model: &CompactModel, free_space: bool) -> Settings {
     let detection = &model.detection;
     let chamfer = ChamferOptions {
         cap: model.cap * model.cap,
@@ -113,6 +120,7 @@ fn compact_settings(options: &FitOptions, model: &CompactModel) -> Settings {
             .unwrap_or_else(crate::budget::default_memory_budget),
         work_budget: options.work_budget.unwrap_or(super::DEFAULT_WORK_PER_POINT),
         mesh: None,
+        free_space,
         method: MethodSettings::Compact(CompactSettings {
             segments: detection.segments.len(),
             proposed: model.proposed,

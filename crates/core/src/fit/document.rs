@@ -170,6 +170,9 @@ pub struct ChamferDoc {
     pub threshold: f64,
     /// [`SolverOptions::polish`].
     pub polish: bool,
+    /// [`Settings::free_space`] (absent in older results: off).
+    #[serde(default)]
+    pub free_space: bool,
 }
 
 /// `settings.ray`: the mcmc method's [`RayModel`].
@@ -314,6 +317,7 @@ impl SettingsDoc {
             memory_budget: crate::budget::default_memory_budget(),
             work_budget: super::DEFAULT_WORK_PER_POINT,
             mesh: self.mesh_model.as_deref().map(load).transpose()?,
+            free_space: self.chamfer.as_ref().is_some_and(|c| c.free_space),
             method,
         };
         Ok((settings, run))
@@ -477,6 +481,7 @@ impl ChamferDoc {
             search_points: s.solver.search_points,
             threshold: s.solver.threshold,
             polish: s.solver.polish,
+            free_space: s.free_space,
         }
     }
 

@@ -25,7 +25,9 @@ use crate::chamfer::LossValue;
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
 use crate::ray::{
-    Entry, McmcOptions, PriorOptions, RayTable, Rays, existence_prior, flip_rates, sample,
+    Entry, McmcOptions, PriorOptions, RayModel, RayTable, Rays, SEEN_SIGMAS,
+    UNOBSERVED_SAMPLE_NATS, existence_prior, flip_rates, occupancy_prior, sample,
+    unobserved_samples,
 };
 use crate::solve::{Solution, StopReason};
 use crate::spatial::PointIndex;
@@ -85,6 +87,7 @@ pub(super) fn fit_mcmc(
 
     let t0 = Instant::now();
     let (candidates, prior) = supported_candidates(cloud, &settings, mcmc.prior)?;
+    let prior = observed_surface_prior(&index, &candidates, &prior, &settings, &model)?;
     let lattice_seconds = t0.elapsed().as_secs_f64();
     progress.message(&format!(
         "{} candidates supported by the prior",
@@ -188,6 +191,24 @@ fn check_cloud(cloud: &PointCloud) -> Result<Rays> {
         });
     }
     Ok(rays)
+}
+
+/// `prior` times the occupancy factor of `crate::ray` (`unseen.rs`): each candidate's
+/// odds drop by [`UNOBSERVED_SAMPLE_NATS`] per point spacing² of its surface with no
+/// point within `max(SEEN_SIGMAS σ, point spacing)`. Samples are `sample_spacing` apart
+/// (each stands for `(sample_spacing / point_spacing)²` points' worth of surface).
+fn observed_surface_prior(
+    index: &PointIndex,
+    candidates: &[Primitive],
+    prior: &[f64],
+    settings: &Settings,
+    model: &RayModel,
+) -> Result<Vec<f64>> {
+    let spacing = settings.sample_spacing.max(settings.point_spacing);
+    let tolerance = (SEEN_SIGMAS * model.sigma).max(settings.point_spacing);
+    let unobserved = unobserved_samples(index, candidates, spacing, tolerance)?;
+    let per_sample = UNOBSERVED_SAMPLE_NATS * (spacing / settings.point_spacing).powi(2);
+    occupancy_prior(prior, &unobserved, per_sample)
 }
 
 /// Lattice candidates whose §4.2.1 prior is positive, with that prior.

@@ -7,7 +7,7 @@
 //! | validate | `mod.rs` | the cloud is non-empty and finite |
 //! | options | `options.rs` | [`FitOptions`] (what a user may set); its `Default` is the one table of fixed defaults, `primfit fit`'s and `primfit.fit`'s |
 //! | resolve | [`settings`](Settings::resolve) | [`FitOptions`] → [`Settings`] (every value used; the defaults that depend on the cloud) |
-//! | pass | `pass.rs` | lattice candidates near the data → memory check ([`estimate_bytes`]) → coefficients → L-BFGS and polish → optional refinement |
+//! | pass | `pass.rs` | lattice candidates near the data → memory and work checks ([`estimate_bytes`], [`estimate_work`]) → coefficients (+ the free-space cost, [`crate::ray::FreeSpace`], when [`Settings::free_space`]) → L-BFGS and polish → optional refinement |
 //! | gaps | `gaps.rs` | coarse to fine: a finer lattice where the refined pass leaves points unexplained |
 //! | re-aligned pass | `mod.rs` | with an estimated frame and refinement: the lattice re-aligned to the first pass's primitives, then pass and gaps again |
 //! | pick | `mod.rs` | of the two passes, the one with the lower [`binary_chamfer`] |
@@ -37,6 +37,8 @@
 
 mod compact;
 pub(crate) mod document;
+#[cfg(test)]
+mod free_space_tests;
 mod gaps;
 mod mcmc;
 mod options;

@@ -103,6 +103,10 @@ pub struct FitOptions {
     /// Upper bound on the estimated work of a lattice pass ([`super::estimate_work`]),
     /// distance evaluations per input point (default: [`super::DEFAULT_WORK_PER_POINT`]).
     pub work_budget: Option<f64>,
+    /// Charge candidates for the rays that cross them in front of their points
+    /// ([`crate::ray::FreeSpace`]); `None` (default): on exactly when the cloud has
+    /// sensor origins; `Some(true)` without them is an error.
+    pub free_space: Option<bool>,
     /// Seed for every random choice (the chamfer fit itself is deterministic).
     pub seed: u64,
 }
@@ -130,6 +134,7 @@ impl Default for FitOptions {
             method: MethodOptions::default(),
             memory_budget: None,
             work_budget: None,
+            free_space: None,
             seed: DEFAULT_SEED,
         }
     }

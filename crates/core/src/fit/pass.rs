@@ -5,15 +5,15 @@ use std::time::Instant;
 use super::work::check_work;
 use super::{FitResult, FitStats, Settings};
 use crate::atlas::Shape;
-use crate::chamfer::Coefficients;
-use crate::chamfer::estimate_bytes;
+use crate::chamfer::{ChamferOptions, Coefficients, estimate_bytes};
 use crate::error::{Remedy, Unit};
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
+use crate::ray::{FreeSpace, Rays};
 use crate::refine::{RefineContext, Refined, refine};
 use crate::solve::solve;
 use crate::spatial::PointIndex;
-use crate::{Error, PointCloud, Primitive, Result};
+use crate::{Error, PointCloud, Primitive, Result, check};
 
 /// What [`refine`] needs from a fit under `settings` (`shapes` = `settings.shapes()`).
 pub(super) fn refine_context<'a>(
@@ -71,6 +71,29 @@ pub(super) fn check_memory(
     Ok((need, max_samples))
 }
 
+/// Adds the free-space cost of `candidates` under the rays of `cloud` (which has sensor
+/// origins) to their primitive coefficients `g`: the loss gains `w_point · Σ_i p_i f_i`
+/// ([`FreeSpace`]), entered as `g_i += w_point f_i / w_prim` like the compact model's
+/// description lengths. Needs a positive primitive weight.
+pub(super) fn charge_free_space(
+    cloud: &PointCloud,
+    candidates: &[Primitive],
+    chamfer: &ChamferOptions,
+    g: &mut [f64],
+) -> Result<FreeSpace> {
+    check::positive(
+        "primitive_weight (with free space)",
+        chamfer.primitive_weight,
+    )?;
+    let rays = Rays::from_cloud(cloud)?;
+    let free = FreeSpace::build(&rays, candidates, chamfer.cap)?;
+    let scale = chamfer.point_weight / chamfer.primitive_weight;
+    for (g, f) in g.iter_mut().zip(&free.cost) {
+        *g += scale * f;
+    }
+    Ok(free)
+}
+
 /// One lattice fit under `settings`, refined when `settings.refine` is set.
 pub(super) fn fit_pass(
     cloud: &PointCloud,
@@ -114,7 +137,17 @@ pub(super) fn fit_pass(
     )?;
     let lattice_candidates = candidates.len();
     candidates.retain(&reduced.keep_mask(lattice_candidates));
-    let coeffs = reduced.coefficients;
+    let mut coeffs = reduced.coefficients;
+    if settings.free_space && cloud.sensors.is_some() {
+        let prims: Vec<Primitive> = (0..candidates.len())
+            .map(|i| candidates.primitive(i))
+            .collect();
+        let free = charge_free_space(cloud, &prims, &settings.chamfer, &mut coeffs.g)?;
+        progress.message(&format!(
+            "free space: {} rays cross candidates in front of their points",
+            free.crossings.iter().sum::<usize>()
+        ));
+    }
     let coefficient_seconds = t1.elapsed().as_secs_f64();
     progress.checkpoint()?;
     progress.message(&format!(

@@ -69,6 +69,10 @@ pub struct Settings {
     pub work_budget: f64,
     /// Mesh source, if the mesh type is used.
     pub mesh: Option<MeshShape>,
+    /// Whether rays charge the candidates they cross in front of their points
+    /// ([`crate::ray::FreeSpace`]): [`FitOptions::free_space`] resolved against the
+    /// cloud's sensor origins.
+    pub free_space: bool,
     /// The inference method and the settings only it has.
     pub method: MethodSettings,
 }
@@ -339,6 +343,22 @@ fn resolve_frame(
     (frame, frame_support, origin)
 }
 
+/// Whether a fit of `cloud` charges free space: asked for (`Some`), or by default
+/// (`None`) exactly when the cloud has sensor origins. Asking for it without them is an
+/// error naming what is missing.
+pub(crate) fn resolve_free_space(asked: Option<bool>, cloud: &PointCloud) -> Result<bool> {
+    match (asked, cloud.sensors.is_some()) {
+        (Some(true), false) => Err(Error::Missing {
+            what: "each point's sensor origin (PLY vertex properties sensor_x, sensor_y, \
+                   sensor_z)"
+                .into(),
+            needed_by: "the free-space cost (free_space)",
+        }),
+        (Some(on), _) => Ok(on),
+        (None, has_sensors) => Ok(has_sensors),
+    }
+}
+
 impl Settings {
     /// Resolves every default from the cloud (see the module docs) and validates.
     pub fn resolve(cloud: &PointCloud, index: &PointIndex, o: &FitOptions) -> Result<Settings> {
@@ -409,6 +429,9 @@ impl Settings {
                 .unwrap_or_else(crate::budget::default_memory_budget),
             work_budget: work_budget(o)?,
             mesh: o.mesh.clone(),
+            // The mcmc method's ray likelihood holds free space already.
+            free_space: matches!(o.method, MethodOptions::Chamfer)
+                && resolve_free_space(o.free_space, cloud)?,
             method,
         })
     }

@@ -27,6 +27,9 @@
 //! assert!(truth > nearest);
 //! ```
 
+mod free_space;
+#[cfg(test)]
+mod free_space_tests;
 mod incremental;
 mod likelihood;
 mod mcmc;
@@ -34,9 +37,14 @@ mod prior;
 mod raytree;
 #[cfg(test)]
 pub(crate) mod tests;
+mod unseen;
 
+pub use free_space::{
+    FreeSpace, MAX_FREE_SPACE_RAYS, crossing_cost, marched_free_space, marches_into,
+};
 pub use incremental::SceneState;
 pub use likelihood::{RayModel, crossing_terms, log_upper_tail, ray_log_likelihood};
 pub use mcmc::{McmcOptions, McmcResult, flip_rates, sample};
 pub use prior::{PriorOptions, existence_prior};
 pub use raytree::{Entry, RayTable, RayTree, Rays, SEEN_SIGMAS, naive_log_likelihood};
+pub use unseen::{UNOBSERVED_SAMPLE_NATS, occupancy_prior, unobserved_samples};

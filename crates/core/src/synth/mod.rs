@@ -34,6 +34,7 @@ mod hallway;
 mod nine;
 mod partial_view;
 mod pipe;
+mod ray_scenes;
 mod registration;
 mod room;
 mod room_presets;
@@ -49,6 +50,7 @@ pub use hallway::{HallwayParams, hallway};
 pub use nine::{NineCylinderParams, nine_cylinders, nine_cylinders_candidates};
 pub use partial_view::{PartialViewParams, partial_view};
 pub use pipe::{PipeParams, pipe};
+pub use ray_scenes::{RAY_SCENE_RANGE_NOISE, RAY_SCENES, RayScene, ray_scene};
 pub use registration::{RegistrationParams, asymmetric_object, registration};
 pub use room::{Furniture, RoomGeometry, Tube};
 pub use room_presets::{

@@ -299,7 +299,7 @@ fn circle(centre: Point2<f64>, radius: f64) -> Vec<Point2<f64>> {
 /// local x and y are the next two axes in the order that makes `sign · e_axis` its +z.
 /// `holes` are rings in room coordinates of those two axes, in cyclic axis order
 /// (for the floor and ceiling: room (x, y)).
-fn face(
+pub(crate) fn face(
     axis: usize,
     sign: f64,
     at: f64,

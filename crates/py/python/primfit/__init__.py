@@ -342,7 +342,8 @@ def fit(cloud: ArrayLike | Mapping[str, Any], **options: Any) -> FitResult:
 
     ``cloud`` is a (J, 3) array-like, an Open3D ``PointCloud`` (any object with a
     ``points`` attribute), or a dict as :func:`read_ply` returns (its ``normals``,
-    ``labels`` and ``sensors`` are used by ``method="mcmc"``). Every option is a flag of
+    ``labels`` and ``sensors`` are used by ``method="mcmc"``; ``sensors`` also by
+    ``free_space``). Every option is a flag of
     ``primfit fit`` under the same name (``--no-refine`` is ``refine=False``,
     ``--no-polish`` is ``polish=False``); ``None`` or leaving it out takes the library's
     default or derives the value from the cloud (the result's ``settings`` lists what was
@@ -408,6 +409,10 @@ def fit(cloud: ArrayLike | Mapping[str, Any], **options: Any) -> FitResult:
         point (default 2e5, about 14x the default lattice fit's); a fit over either
         budget raises ``ValueError`` before it starts. Ctrl-C stops a running fit
         (``KeyboardInterrupt``) at its next stage.
+    free_space : bool
+        Charge each candidate for the rays that cross it in front of their points
+        (``--free-space``; default: on exactly when the cloud has ``sensors``;
+        ``True`` without them is an error).
     """
     points, extra = _cloud(cloud)
     return FitResult(*_primfit.fit(points, _fit_options(options), **extra))

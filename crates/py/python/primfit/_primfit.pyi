@@ -117,6 +117,7 @@ class FitOptions:
         mesh_model: str | os.PathLike[str] | tuple[_F64, _I64] | None = None,
         memory_budget: int | None = None,
         work_budget: float | None = None,
+        free_space: bool | None = None,
     ) -> FitOptions: ...
 
 def fit(
