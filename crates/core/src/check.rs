@@ -110,11 +110,23 @@ pub fn unit_quaternion(name: &str, q: [f64; 4]) -> Result<nalgebra::UnitQuaterni
         let expected = "a finite, non-zero quaternion [w, x, y, z]";
         return Err(Error::out_of_range(name, format!("{q:?}"), expected));
     }
+    let [w, i, j, k] = q;
+    let plain = nalgebra::Quaternion::new(w, i, j, k);
+    // Rescaled only when the norm itself over- or underflows, so that a unit quaternion
+    // read back from JSON keeps its exact bits.
+    let norm = plain.norm();
+    if norm.is_finite() && norm >= QUATERNION_MIN_NORM {
+        return Ok(nalgebra::UnitQuaternion::from_quaternion(plain));
+    }
     let [w, i, j, k] = q.map(|c| c / largest);
     Ok(nalgebra::UnitQuaternion::from_quaternion(
         nalgebra::Quaternion::new(w, i, j, k),
     ))
 }
+
+/// Below this norm a quaternion is rescaled before it is normalised ([`unit_quaternion`]):
+/// its squared components would lose precision in subnormals.
+const QUATERNION_MIN_NORM: f64 = 1e-150;
 
 /// How far (in steps) from a whole multiple [`multiple_of`] accepts.
 const MULTIPLE_TOLERANCE: f64 = 1e-9;

@@ -109,8 +109,8 @@ pub struct FitArgs {
     /// every point. 0 = one phase on every point (slower on large clouds).
     #[arg(allow_hyphen_values = true, long, default_value_t = DEFAULT_SEARCH_POINTS.get().unwrap_or(0))]
     pub search_points: usize,
-    /// Most estimated distance evaluations per point of a lattice pass; a fit over it
-    /// is refused up front [default: 2e5, about 14× the default lattice fit's].
+    /// Most estimated nearest-neighbour queries per point of a lattice pass; a fit over
+    /// it is refused up front [default: 2000, 20× the default lattice fit's].
     #[arg(allow_hyphen_values = true, long)]
     pub work_budget: Option<f64>,
     /// Skip the discrete polish after thresholding.

@@ -101,7 +101,7 @@ pub struct FitOptions {
     /// bytes (default: [`DEFAULT_MEMORY_SHARE`] of the machine's memory).
     pub memory_budget: Option<u64>,
     /// Upper bound on the estimated work of a lattice pass ([`super::estimate_work`]),
-    /// distance evaluations per input point (default: [`super::DEFAULT_WORK_PER_POINT`]).
+    /// nearest-neighbour queries per input point (default: [`super::DEFAULT_WORK_PER_POINT`]).
     pub work_budget: Option<f64>,
     /// Charge candidates for the rays that cross them in front of their points
     /// ([`crate::ray::FreeSpace`]); `None` (default): on exactly when the cloud has

@@ -64,7 +64,7 @@ pub struct Settings {
     pub seed: u64,
     /// Budget for the estimated peak memory of a fit, bytes ([`super::estimate_bytes`]).
     pub memory_budget: u64,
-    /// Budget for the estimated work of a lattice pass, distance evaluations per point
+    /// Budget for the estimated work of a lattice pass, nearest-neighbour queries per point
     /// ([`super::estimate_work`]).
     pub work_budget: f64,
     /// Mesh source, if the mesh type is used.

@@ -405,8 +405,8 @@ def fit(cloud: ArrayLike | Mapping[str, Any], **options: Any) -> FitResult:
         Upper bound on the fit's estimated peak memory in bytes (default half the
         machine's memory).
     work_budget : float
-        Upper bound on a lattice pass's estimated work, in distance evaluations per
-        point (default 2e5, about 14x the default lattice fit's); a fit over either
+        Upper bound on a lattice pass's estimated work, in nearest-neighbour queries
+        per point (default 2000, 20x the default lattice fit's); a fit over either
         budget raises ``ValueError`` before it starts. Ctrl-C stops a running fit
         (``KeyboardInterrupt``) at its next stage.
     free_space : bool
