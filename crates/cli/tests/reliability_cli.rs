@@ -30,6 +30,14 @@ fn scene_and_model(dir: &Path) {
     common::write_ascii_ply(&dir.join("model.ply"), &corners, element, faces);
 }
 
+/// Fits `scene.ply` in `dir` with the square lattice, writing `output`.
+fn fit_squares(dir: &Path, output: &str) {
+    ok(
+        dir,
+        &["fit", "scene.ply", "--types", "square", "-o", output, "-q"],
+    );
+}
+
 #[test]
 fn thread_counts_are_bounded_and_the_error_names_the_flag() {
     let dir = temp_dir("threads");
@@ -232,18 +240,7 @@ fn scenes_without_finite_points_are_blamed_and_partial_ones_warned_about() {
     let mut some = floor_and_wall();
     some.extend(nan);
     common::write_ascii_ply(&dir.join("some.ply"), &some, "", "");
-    ok(
-        &dir,
-        &[
-            "fit",
-            "scene.ply",
-            "--types",
-            "square",
-            "-o",
-            "r.json",
-            "-q",
-        ],
-    );
+    fit_squares(&dir, "r.json");
     for scene in ["nan.ply", "empty.ply"] {
         fails(
             &dir,
@@ -307,18 +304,7 @@ fn outputs_write_through_symlinks_and_refuse_fifos() {
     scene_and_model(&dir);
     fs::write(dir.join("real.json"), "old").unwrap();
     std::os::unix::fs::symlink("real.json", dir.join("link.json")).unwrap();
-    ok(
-        &dir,
-        &[
-            "fit",
-            "scene.ply",
-            "--types",
-            "square",
-            "-o",
-            "link.json",
-            "-q",
-        ],
-    );
+    fit_squares(&dir, "link.json");
     let meta = fs::symlink_metadata(dir.join("link.json")).unwrap();
     assert!(meta.file_type().is_symlink(), "the link is kept");
     let written = fs::read_to_string(dir.join("real.json")).unwrap();
