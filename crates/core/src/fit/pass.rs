@@ -6,14 +6,14 @@ use super::work::check_work;
 use super::{FitResult, FitStats, Settings};
 use crate::atlas::Shape;
 use crate::chamfer::{ChamferOptions, Coefficients, estimate_bytes};
-use crate::error::{Remedy, Unit};
+use crate::error::Remedy;
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
 use crate::ray::{FreeSpace, Rays};
 use crate::refine::{RefineContext, Refined, refine};
 use crate::solve::solve;
 use crate::spatial::PointIndex;
-use crate::{Error, PointCloud, Primitive, Result, check};
+use crate::{Error, PointCloud, Primitive, Result, budget, check};
 
 /// What [`refine`] needs from a fit under `settings` (`shapes` = `settings.shapes()`).
 pub(super) fn refine_context<'a>(
@@ -47,28 +47,34 @@ pub(super) fn check_memory(
         .max()
         .unwrap_or(1);
     let need = estimate_bytes(points, candidates.len(), max_samples, &settings.chamfer);
-    if need > settings.memory_budget {
-        let beta = settings
-            .chamfer
-            .beta
-            .map_or("all".to_string(), |b| b.to_string());
-        return Err(Error::OverLimit {
-            what: format!(
-                "a fit of {points} points × {} candidates (β = {beta})",
-                candidates.len()
-            ),
-            need: need as f64,
-            limit: settings.memory_budget as f64,
-            unit: Unit::Bytes,
-            remedies: vec![
-                Remedy::Lower("beta"),
-                Remedy::Raise("spacing"),
-                Remedy::Subsample,
-                Remedy::Raise("memory_budget"),
-            ],
-        });
-    }
+    budget::check_memory(
+        &describe_fit(points, candidates, settings),
+        need,
+        settings.memory_budget,
+        vec![
+            Remedy::Lower("beta"),
+            Remedy::Raise("spacing"),
+            Remedy::Subsample,
+            Remedy::Raise("memory_budget"),
+        ],
+    )?;
     Ok((need, max_samples))
+}
+
+/// `a fit of P points × N candidates (β = B)`: what a refused budget names.
+pub(super) fn describe_fit(
+    points: usize,
+    candidates: &CandidateSet,
+    settings: &Settings,
+) -> String {
+    let beta = settings
+        .chamfer
+        .beta
+        .map_or("inf".to_string(), |b| b.to_string());
+    format!(
+        "a fit of {points} points × {} candidates (β = {beta})",
+        candidates.len()
+    )
 }
 
 /// Adds the free-space cost of `candidates` under the rays of `cloud` (which has sensor

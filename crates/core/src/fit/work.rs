@@ -18,6 +18,7 @@
 //! [`DEFAULT_WORK_PER_POINT`] allows 20× that.
 
 use super::Settings;
+use super::pass::describe_fit;
 use crate::error::Remedy;
 use crate::lattice::CandidateSet;
 use crate::{Result, budget};
@@ -60,16 +61,8 @@ pub(super) fn check_work(
 ) -> Result<()> {
     let need = estimate_work(points, candidates, settings);
     let limit = settings.work_budget * (points as f64).max(MIN_BUDGET_POINTS);
-    let what = format!(
-        "a fit of {points} points × {} candidates (β = {})",
-        candidates.len(),
-        settings
-            .chamfer
-            .beta
-            .map_or("inf".to_string(), |b| b.to_string())
-    );
     budget::check_count(
-        &what,
+        &describe_fit(points, candidates, settings),
         need,
         limit,
         "nearest-neighbour queries",
