@@ -512,7 +512,12 @@ fn bad_flags_fail_with_one_line_naming_the_flag_and_write_nothing() {
             vec!["--bend", "0.01", "--radius", "0.1", "--types", "elbow"],
             "bend",
         ),
-        (vec!["--sample-spacing", "1e-9"], "--sample-spacing"),
+        // A lattice's samples are its memory; the compact model estimates a large
+        // surface's primitive term from a bounded number of samples whatever the spacing.
+        (
+            vec!["--sample-spacing", "1e-9", "--types", "square"],
+            "--sample-spacing",
+        ),
         (vec!["--types", "sphere", "--size", "1e-12"], "--size"),
         (vec!["--cap", "-1"], "--cap"),
         (vec!["--weights", "1,nan"], "--weights"),

@@ -30,6 +30,7 @@
 //! | [`Primitive`], [`Pose`], [`Hit`] | a shape placed in the scene, its pose, a ray's first hit on it |
 //! | [`Shape`], [`ShapeKind`], [`MeshShape`], [`TriMesh`] | primitive types in their local frame, a triangle mesh |
 //! | [`Progress`], [`Silent`] | how long stages report progress |
+//! | [`StageTimes`], [`Stopwatch`] | wall time per stage of a run (`primfit fit -v`, `--timings`) |
 //! | [`Error`], [`Result`], [`Unit`], [`Remedy`], [`Limit`] | the typed error, what its amounts count and what would fix it; a count that may be unlimited |
 //! | [`VERSION`], [`na`] | the library version; nalgebra, whose points and rotations the API uses |
 //!
@@ -150,11 +151,12 @@ pub mod solve;
 mod spatial;
 mod surface;
 pub mod synth;
+mod timing;
 
 pub use atlas::{MeshShape, Shape, ShapeKind, TriMesh};
 pub use cloud::{PointCloud, bounds_of};
 pub use error::{Error, Remedy, Result, Unit};
-pub use fit::{FitOptions, FitResult, fit};
+pub use fit::{FitOptions, FitResult, fit, fit_indexed};
 pub use io::{read_cloud, read_mesh, write_mesh};
 pub use limit::Limit;
 pub use metrics::{Metrics, MetricsOptions, evaluate};
@@ -162,6 +164,7 @@ pub use primitive::{Hit, Pose, Primitive};
 pub use progress::{Progress, Silent};
 pub use register::{RegisterOptions, Registration, register};
 pub use spatial::PointIndex;
+pub use timing::{StageTimes, Stopwatch};
 
 /// The library version, written into every `result.json` as `"primfit"`.
 pub const VERSION: &str = env!("CARGO_PKG_VERSION");

@@ -8,13 +8,14 @@ use primfit_core::atlas::{MeshShape, ShapeKind};
 use primfit_core::fit::FrameChoice;
 use primfit_core::fit::{
     AUTO_TYPES, DEFAULT_FRAME, DEFAULT_MAX_ITERATIONS, DEFAULT_PRIOR, DEFAULT_SEARCH_POINTS,
-    DEFAULT_SEED, FitOptions, McmcFitOptions, MethodOptions, fit, parse_types,
+    DEFAULT_SEED, FitOptions, McmcFitOptions, MethodOptions, fit_indexed, parse_types,
 };
 use primfit_core::io::{self, Encoding};
+use primfit_core::metrics::evaluate_indexed;
 use primfit_core::na::Point3;
 use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
-use primfit_core::{Limit, chamfer::PointModel as Model};
+use primfit_core::{Limit, MetricsOptions, PointIndex, Stopwatch, chamfer::PointModel as Model};
 
 use super::sizes::SizeArgs;
 use super::{Output, check_output, parse_limit, parse_pair, parse_point, read_scene};
@@ -144,6 +145,10 @@ pub struct FitArgs {
     /// Seed for every random choice.
     #[arg(allow_hyphen_values = true, long, default_value_t = DEFAULT_SEED)]
     pub seed: u64,
+    /// Write the wall time of every stage (read, index, detection steps, existence,
+    /// measures, output) as JSON here.
+    #[arg(long, value_name = "timings.json")]
+    pub timings: Option<PathBuf>,
 }
 
 impl FitArgs {
@@ -240,9 +245,11 @@ impl FitArgs {
 
 /// Runs `primfit fit`.
 pub fn run(args: FitArgs, out: &Output) -> Result<()> {
+    let mut clock = Stopwatch::start();
     let mut outputs = vec![];
     outputs.extend(args.output.as_deref());
     outputs.extend(args.mesh.as_deref());
+    outputs.extend(args.timings.as_deref());
     let mut inputs = vec![args.scene.as_path()];
     inputs.extend(args.mesh_model.as_deref());
     for path in &outputs {
@@ -251,13 +258,17 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
     if let Some(path) = &args.mesh {
         io::MeshFormat::from_path(path)?;
     }
-    if let [a, b] = outputs[..]
-        && a == b
-    {
-        bail!("{}: given both as -o and as --mesh", a.display());
+    for (i, a) in outputs.iter().enumerate() {
+        if outputs[..i].contains(a) {
+            bail!(
+                "{}: given as two outputs (-o, --mesh, --timings)",
+                a.display()
+            );
+        }
     }
     let options = args.options()?;
     let cloud = read_scene(&args.scene, out)?;
+    clock.lap("read");
     if args.method == "mcmc" && cloud.sensors.is_none() {
         bail!(
             "{}: --method mcmc needs each point's sensor origin (PLY vertex properties \
@@ -266,9 +277,21 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
         );
     }
     let bars = Bars::new(out.quiet, out.verbose);
-    let result = fit(&cloud, &options, &bars)
+    // One kd-tree for the fit and the measures.
+    let index = PointIndex::new(&cloud.points);
+    clock.lap("index");
+    let result = fit_indexed(&cloud, &index, &options, &bars)
         .with_context(|| format!("fitting {}", args.scene.display()))?;
-    let metrics = super::eval::measure(&cloud, &result.primitives, None)?;
+    clock.lap("fit");
+    clock.nest("fit", &result.stats.stages);
+    let metrics = evaluate_indexed(
+        &cloud.points,
+        &index,
+        &result.primitives,
+        None,
+        &MetricsOptions::default(),
+    )?;
+    clock.lap("measures");
     let encoding = if args.ascii {
         Encoding::Ascii
     } else {
@@ -290,8 +313,21 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
     if let Some(json) = staged {
         json.commit()?;
     }
+    clock.lap("write");
+    if let Some(path) = &args.timings {
+        let doc = serde_json::json!({
+            "scene": args.scene.display().to_string(),
+            "points": cloud.len(),
+            "threads": rayon::current_num_threads(),
+            "stages": clock.times.to_json(),
+        });
+        io::write_json_atomic(path, &doc)?;
+    }
     if !out.quiet {
         print_summary(&args, &result, &metrics, out.verbose);
+        if out.verbose {
+            println!("stages: {}", clock.times.summary());
+        }
     }
     Ok(())
 }
@@ -344,6 +380,22 @@ fn print_summary(
             s.coefficient_seconds,
             s.solve_seconds,
             r.solution.iterations,
+            r.solution.flips
+        );
+    } else if let (true, primfit_core::fit::MethodSettings::Compact(c)) =
+        (verbose, &r.settings.method)
+    {
+        let st = &r.settings;
+        println!(
+            "compact model: {} segments → {} candidates; noise σ {:.5}, point spacing {:.5}, cap {:.5}, sample spacing {:.5}; existence: {} iterations, {} evaluations, {} polish flips",
+            c.segments,
+            c.proposed,
+            st.noise,
+            st.point_spacing,
+            st.cap,
+            st.sample_spacing,
+            r.solution.iterations,
+            r.solution.evaluations,
             r.solution.flips
         );
     } else if verbose {

@@ -21,6 +21,7 @@
 //! | `Plane(PlaneShape)` | a polygon (outer ring, optional holes) in the plane z = 0, normal +z; built from points with [`PlaneShape::from_points`] or [`fit_plane`] |
 
 mod bvh;
+mod edge_slabs;
 mod elbow;
 mod mesh;
 mod numeric;

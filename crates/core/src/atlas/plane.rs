@@ -10,9 +10,8 @@
 //!
 //! Queries are exact: a point's projection is inside the plane by the even–odd rule over
 //! all rings (holes and other parts included: parts are disjoint), otherwise its closest
-//! point lies on a ring edge. The
-//! cost of a query is linear in the number of edges; outlines from
-//! [`PlaneShape::from_points`] are simplified to a few dozen edges at most.
+//! point lies on a ring edge. A query looks at the edges of the horizontal slabs near
+//! its projection (`edge_slabs.rs`), not at all of them.
 
 use std::sync::Arc;
 
@@ -21,6 +20,7 @@ use nalgebra::{Point2, Point3, Vector3};
 use serde_json::Value;
 
 use super::TriMesh;
+use super::edge_slabs::EdgeSlabs;
 use super::planar::plane_ray;
 use crate::error::Unit;
 use crate::{Error, Result};
@@ -66,6 +66,8 @@ struct PlaneData {
     bounding_radius: f64,
     /// Axis-aligned bounds of the outlines: `(min, max)`.
     bounds: (Point2<f64>, Point2<f64>),
+    /// `edges` by horizontal slab, for the point queries.
+    slabs: EdgeSlabs,
 }
 
 impl std::fmt::Debug for PlaneShape {
@@ -142,7 +144,7 @@ impl PlaneShape {
                 mesh.area()
             )));
         }
-        let edges = parts
+        let edges: Vec<[Point2<f64>; 2]> = parts
             .iter()
             .flat_map(|(o, h)| std::iter::once(o).chain(h))
             .flat_map(|ring| ring_edges(ring))
@@ -156,6 +158,7 @@ impl PlaneShape {
             ),
             |(lo, hi), v| (lo.inf(v), hi.sup(v)),
         );
+        let slabs = EdgeSlabs::new(&edges, bounds.0.y, bounds.1.y);
         let inner = PlaneData {
             parts,
             edges,
@@ -163,6 +166,7 @@ impl PlaneShape {
             area,
             bounding_radius,
             bounds,
+            slabs,
         };
         Ok(PlaneShape {
             inner: Arc::new(inner),
@@ -215,7 +219,8 @@ impl PlaneShape {
     /// rings; points on an edge may go either way).
     pub fn contains(&self, x: f64, y: f64) -> bool {
         let mut inside = false;
-        for [a, b] in &self.inner.edges {
+        for &e in self.inner.slabs.near(y) {
+            let [a, b] = &self.inner.edges[e as usize];
             if (a.y > y) != (b.y > y) && x < a.x + (y - a.y) * (b.x - a.x) / (b.y - a.y) {
                 inside = !inside;
             }
@@ -230,15 +235,14 @@ impl PlaneShape {
             return Point3::new(p.x, p.y, 0.0);
         }
         let q = Point2::new(p.x, p.y);
-        let mut best = (f64::INFINITY, q);
-        for [a, b] in &self.inner.edges {
-            let c = closest_on_segment(&q, a, b);
-            let d2 = (q - c).norm_squared();
-            if d2 < best.0 {
-                best = (d2, c);
-            }
-        }
-        Point3::new(best.1.x, best.1.y, 0.0)
+        let edges = &self.inner.edges;
+        let on_edge = |e: usize| closest_on_segment(&q, &edges[e][0], &edges[e][1]);
+        let closest = self
+            .inner
+            .slabs
+            .closest(q.y, |e| (q - on_edge(e)).norm_squared());
+        let c = closest.map_or(q, on_edge);
+        Point3::new(c.x, c.y, 0.0)
     }
 
     /// The first hit of the ray `o + t·d` (local frame, `t ≥ 0` in units of `d`) with the

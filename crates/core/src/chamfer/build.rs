@@ -34,12 +34,24 @@ impl Coefficients {
         options: &ChamferOptions,
         progress: &dyn Progress,
     ) -> Result<Self> {
+        Self::build_indexed(cloud, &PointIndex::new(cloud), geometry, options, progress)
+    }
+
+    /// [`Coefficients::build`] with `cloud_index`, a kd-tree over exactly `cloud`,
+    /// already built (a fit builds one for the whole pipeline).
+    pub fn build_indexed(
+        cloud: &[Point3<f64>],
+        cloud_index: &PointIndex,
+        geometry: &impl CandidateGeometry,
+        options: &ChamferOptions,
+        progress: &dyn Progress,
+    ) -> Result<Self> {
         options.validate()?;
+        crate::check::same_len("indexed points", cloud_index.len(), "points", cloud.len())?;
         let n = geometry.len();
         check_candidate_count(n)?;
-        let cloud_index = PointIndex::new(cloud);
         progress.start("primitive term", n as u64);
-        let g = primitive_coefficients(&cloud_index, geometry, progress);
+        let g = primitive_coefficients(cloud_index, geometry, progress);
         progress.finish();
         let rows = PointRows::build(cloud, geometry, options, progress);
         Ok(rows.into_coefficients(g, options.clone()))

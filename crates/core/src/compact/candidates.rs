@@ -25,6 +25,14 @@ pub const TUBE_SECTORS: usize = 36;
 /// Points probed for a segment's median spacing.
 const SPACING_PROBES: usize = 500;
 
+/// Neighbours first fetched from the cloud to find a probe's nearest point of its own
+/// segment; four times as many at each retry, up to [`MAX_MEMBER_NEIGHBOURS`].
+const MEMBER_NEIGHBOURS: usize = 8;
+
+/// See [`MEMBER_NEIGHBOURS`]: a probe whose 512 nearest points hold no other point of
+/// its segment is left out of the median.
+const MAX_MEMBER_NEIGHBOURS: usize = 512;
+
 /// One proposed candidate and the detected segment it comes from.
 #[derive(Debug, Clone)]
 pub struct Proposal {
@@ -34,15 +42,16 @@ pub struct Proposal {
     pub segment: usize,
 }
 
-/// The candidates of every segment of `detection` over `points`, in segment order.
+/// The candidates of every segment of `detection` over `points` (indexed by `index`),
+/// in segment order.
 /// Segments whose points give no outline (too few, degenerate) propose nothing.
-pub fn propose(points: &[Point3<f64>], detection: &Detection) -> Vec<Proposal> {
+pub fn propose(points: &[Point3<f64>], index: &PointIndex, detection: &Detection) -> Vec<Proposal> {
     let per_segment: Vec<Vec<Proposal>> = detection
         .segments
         .par_iter()
         .enumerate()
         .map(|(s, segment)| {
-            segment_candidates(points, segment, detection.spacing)
+            segment_candidates(points, index, segment, detection.spacing)
                 .into_iter()
                 .map(|primitive| Proposal {
                     primitive,
@@ -58,25 +67,67 @@ pub fn propose(points: &[Point3<f64>], detection: &Detection) -> Vec<Proposal> {
 /// when the segment's own cannot be measured).
 fn segment_candidates(
     points: &[Point3<f64>],
+    index: &PointIndex,
     segment: &Segment,
     fallback_spacing: f64,
 ) -> Vec<Primitive> {
     match segment.model {
         SurfaceModel::Plane { normal, .. } => {
             let own: Vec<Point3<f64>> = segment.points.iter().map(|&i| points[i]).collect();
-            let spacing = own_spacing(&own).unwrap_or(fallback_spacing);
+            let spacing = own_spacing(points, index, &segment.points).unwrap_or(fallback_spacing);
             bounded_planes(&own, normal, OUTLINE_CELLS_PER_SPACING * spacing)
         }
         _ => segment.primitive().into_iter().collect(),
     }
 }
 
-/// The median nearest-neighbour distance among `points`.
-fn own_spacing(points: &[Point3<f64>]) -> Option<f64> {
-    let index = PointIndex::new(points);
-    index
-        .median_spacing(points, SPACING_PROBES)
-        .filter(|s| *s > 0.0)
+/// The median nearest-neighbour distance among the points `members` (ascending
+/// indices into `points`), over up to [`SPACING_PROBES`] evenly strided members; the
+/// neighbours come from `index`, the whole cloud's, filtered to the members: the same
+/// answer as a kd-tree of the members' own, without building one over a wall of
+/// millions of points for a few hundred probes.
+fn own_spacing(points: &[Point3<f64>], index: &PointIndex, members: &[usize]) -> Option<f64> {
+    if members.len() < 2 {
+        return None;
+    }
+    let stride = (members.len() / SPACING_PROBES).max(1);
+    let mut d: Vec<f64> = members
+        .iter()
+        .step_by(stride)
+        .filter_map(|&i| second_member(points, index, members, &points[i]))
+        .filter(|d| *d > 0.0)
+        .collect();
+    if d.is_empty() {
+        return None;
+    }
+    let mid = d.len() / 2;
+    d.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(d[mid])
+}
+
+/// The distance from `q` (a member) to the second nearest member, the first being `q`
+/// itself or a duplicate, by (distance, index); `None` when the nearest
+/// [`MAX_MEMBER_NEIGHBOURS`] points of the cloud hold fewer than two members.
+fn second_member(
+    points: &[Point3<f64>],
+    index: &PointIndex,
+    members: &[usize],
+    q: &Point3<f64>,
+) -> Option<f64> {
+    let mut k = MEMBER_NEIGHBOURS;
+    loop {
+        let hits = index.nearest_n(q, k.min(points.len()));
+        let mut found = hits
+            .iter()
+            .filter(|(j, _)| members.binary_search(&(*j as usize)).is_ok());
+        if let (Some(_), Some(second)) = (found.next(), found.next()) {
+            return Some(second.1.sqrt());
+        }
+        if k >= MAX_MEMBER_NEIGHBOURS || hits.len() < k {
+            return None;
+        }
+        k *= 4;
+    }
 }
 
 /// The bounded plane of `points` (all on the plane of `normal`), one part per connected
@@ -108,18 +159,71 @@ fn bounded_planes(
         .collect()
 }
 
-/// The samples (scene coordinates, about `spacing` apart) by which a candidate is judged:
-/// all of a plane's or a sphere's; of a cylinder, those in the angular sectors around
-/// its axis where its segment's points (`segment` indices into `points`) lie, with one
-/// sector of margin ([`TUBE_SECTORS`]). Never empty for a valid primitive.
-pub fn supported_samples(
+/// How the loss sees one candidate: the samples of its primitive term, the area each
+/// stands for, and whether they cover only part of its surface.
+#[derive(Debug, Clone)]
+pub struct CandidateSamples {
+    /// Surface samples (scene coordinates).
+    pub points: Vec<Point3<f64>>,
+    /// The weight of each sample's squared distance in the primitive term: the area it
+    /// stands for over `s²`, `s` the sample spacing of the fit (1: sampled at `s`).
+    pub weight: f64,
+    /// Whether the samples cover only part of the surface (a tube seen from one side):
+    /// the candidate is then judged by them in the point term too.
+    pub partial: bool,
+}
+
+/// The samples by which a candidate is judged, about `spacing` apart: all of a plane's
+/// or a sphere's; of a cylinder, those in the angular sectors around its axis where its
+/// segment's points (`segment` indices into `points`) lie, with one sector of margin
+/// ([`TUBE_SECTORS`]). Never empty for a valid primitive.
+///
+/// A plane or sphere that would have more than `max_samples` samples is sampled more
+/// coarsely, at `s' = spacing √(planned / max_samples)`, and each sample weighted by
+/// `(s' / spacing)²`: the same area integral of squared distances (the primitive term,
+/// thesis eq. 6.1) estimated from `max_samples` samples instead of millions. Its point
+/// term uses the exact surface, so only the estimate's variance changes.
+pub fn judged_samples(
     primitive: &Primitive,
     segment: &[usize],
     points: &[Point3<f64>],
     spacing: f64,
-) -> Vec<Point3<f64>> {
+    max_samples: f64,
+) -> CandidateSamples {
+    let fine = primitive.area() / (spacing * spacing);
+    let own = if planned_samples(primitive, spacing, max_samples) < fine {
+        spacing * (fine / max_samples).sqrt()
+    } else {
+        spacing
+    };
+    let (points, partial) = supported_samples(primitive, segment, points, own);
+    CandidateSamples {
+        points,
+        weight: (own / spacing).powi(2),
+        partial,
+    }
+}
+
+/// About how many samples [`judged_samples`] gives `primitive` (its area over the
+/// spacing squared, at most `max_samples` for a plane or a sphere).
+pub fn planned_samples(primitive: &Primitive, spacing: f64, max_samples: f64) -> f64 {
+    let fine = primitive.area() / (spacing * spacing);
+    match primitive.shape {
+        Shape::Cylinder { .. } => fine,
+        _ => fine.min(max_samples),
+    }
+}
+
+/// [`judged_samples`] at `spacing` without coarsening, and whether they are a part of
+/// the surface's.
+fn supported_samples(
+    primitive: &Primitive,
+    segment: &[usize],
+    points: &[Point3<f64>],
+    spacing: f64,
+) -> (Vec<Point3<f64>>, bool) {
     let local = primitive.shape.sample_surface(spacing);
-    let kept: Vec<Point3<f64>> = match primitive.shape {
+    let sectors: Option<Vec<Point3<f64>>> = match primitive.shape {
         Shape::Cylinder { .. } => {
             let sector = |p: &Point3<f64>| {
                 let t = p.y.atan2(p.x).rem_euclid(std::f64::consts::TAU);
@@ -134,14 +238,45 @@ pub fn supported_samples(
                     || occupied[(k + 1) % TUBE_SECTORS]
                     || occupied[(k + TUBE_SECTORS - 1) % TUBE_SECTORS]
             };
-            local.iter().filter(|p| near(sector(p))).copied().collect()
+            Some(local.iter().filter(|p| near(sector(p))).copied().collect())
         }
-        _ => local,
+        _ => None,
     };
-    let kept = if kept.is_empty() {
-        primitive.shape.sample_surface(spacing)
-    } else {
-        kept
+    let (kept, partial) = match sectors {
+        Some(part) if !part.is_empty() && part.len() < local.len() => (part, true),
+        _ => (local, false),
     };
-    kept.iter().map(|p| primitive.pose.to_scene(p)).collect()
+    let scene = kept.iter().map(|p| primitive.pose.to_scene(p)).collect();
+    (scene, partial)
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn own_spacing_through_the_cloud_index_is_the_members_own_tree_median() {
+        // Two interleaved grids: a coarse one (the members) and a fine one between
+        // them, whose points are nearer than any other member.
+        let mut points = Vec::new();
+        let mut members = Vec::new();
+        for i in 0..60 {
+            for j in 0..40 {
+                let (x, y) = (
+                    i as f64 * 0.1,
+                    j as f64 * 0.1 + 0.003 * ((i * 7 + j) % 5) as f64,
+                );
+                members.push(points.len());
+                points.push(Point3::new(x, y, 0.0));
+                points.push(Point3::new(x + 0.031, y + 0.017, 0.001));
+                points.push(Point3::new(x + 0.052, y + 0.049, -0.001));
+            }
+        }
+        let index = PointIndex::new(&points);
+        let own: Vec<Point3<f64>> = members.iter().map(|&i| points[i]).collect();
+        let expected = PointIndex::new(&own).median_spacing(&own, SPACING_PROBES);
+        assert_eq!(own_spacing(&points, &index, &members), expected);
+        assert!(expected.unwrap() > 0.09, "{expected:?}");
+        assert_eq!(own_spacing(&points, &index, &members[..1]), None);
+    }
 }

@@ -10,13 +10,14 @@
 
 use nalgebra::Point3;
 
+use super::candidates::CandidateSamples;
 use super::geometry::Supported;
 use crate::chamfer::LossValue;
 use crate::chamfer::{ChamferOptions, Coefficients};
 use crate::lattice::CandidateSet;
 use crate::progress::Progress;
 use crate::solve::{Solution, SolverOptions, solve};
-use crate::{Primitive, Result, check};
+use crate::{PointIndex, Primitive, Result, StageTimes, Stopwatch, check};
 
 /// What [`decide_existence`] found for each candidate, in the candidates' order.
 #[derive(Debug, Clone)]
@@ -30,6 +31,8 @@ pub struct Existence {
     /// absent); `solution.binary.total` is the binary loss of the decided scene,
     /// description lengths included.
     pub solution: Solution,
+    /// Wall time of `coefficients` and `solve`.
+    pub times: StageTimes,
 }
 
 /// How [`decide_existence`] scores candidates.
@@ -43,14 +46,15 @@ pub struct ExistenceOptions {
     pub solver: SolverOptions,
 }
 
-/// Decides which candidates exist for `points`: candidate `i` is
-/// given by its surface samples `samples[i]` (scene coordinates, about
-/// `options.sample_spacing` apart; at least one) and charged its description length
-/// `cost[i]` (squared scene units).
+/// Decides which candidates exist for `points` (indexed by `index`, a kd-tree over
+/// exactly them): candidate `i` is judged by `samples[i]` (its primitive term: at least
+/// one sample, each weighted; a partial surface's point term too) and charged its
+/// description length `cost[i]` (squared scene units).
 pub fn decide_existence(
     points: &[Point3<f64>],
+    index: &PointIndex,
     candidates: &[Primitive],
-    samples: &[Vec<Point3<f64>>],
+    samples: &[CandidateSamples],
     cost: &[f64],
     options: &ExistenceOptions,
     progress: &dyn Progress,
@@ -70,25 +74,28 @@ pub fn decide_existence(
             exists: Vec::new(),
             probability: Vec::new(),
             solution: Solution::nothing(0, nothing),
+            times: StageTimes::new(),
         });
     }
     // A candidate whose samples are a part of its surface is judged by them for both
     // terms; every other by its exact surface (`geometry.rs`).
-    let set = CandidateSet::from_primitives(candidates, options.sample_spacing)?;
-    let by_samples: Vec<bool> = candidates
-        .iter()
-        .zip(samples)
-        .map(|(c, s)| s.len() < c.sample_surface(options.sample_spacing).len())
-        .collect();
-    let geometry = Supported::new(set, samples, by_samples)?;
-    let mut coefficients = Coefficients::build(points, &geometry, chamfer, progress)?;
-    for (g, c) in coefficients.g.iter_mut().zip(cost) {
-        *g += c / chamfer.primitive_weight;
+    // The exact shapes serve their surface distances and bounding balls only, which do
+    // not depend on the template's samples: sampled no finer than the coarsest candidate.
+    let coarsest = samples.iter().map(|s| s.weight.sqrt()).fold(1.0, f64::max);
+    let set = CandidateSet::from_primitives(candidates, options.sample_spacing * coarsest)?;
+    let geometry = Supported::new(set, samples)?;
+    let mut clock = Stopwatch::start();
+    let mut coefficients =
+        Coefficients::build_indexed(points, index, &geometry, chamfer, progress)?;
+    clock.lap("coefficients");
+    for ((g, c), s) in coefficients.g.iter_mut().zip(cost).zip(samples) {
+        *g = *g * s.weight + c / chamfer.primitive_weight;
     }
     let kept: Vec<usize> = (0..n).collect();
     let mut exists = vec![false; n];
     let mut probability = vec![0.0; n];
     let mut solution = solve(&coefficients, &options.solver, progress)?;
+    clock.lap("solve");
     for (k, &i) in kept.iter().enumerate() {
         exists[i] = solution.exists[k];
         probability[i] = solution.probability[k];
@@ -99,6 +106,7 @@ pub fn decide_existence(
         exists,
         probability,
         solution,
+        times: clock.times,
     })
 }
 
@@ -114,8 +122,14 @@ mod tests {
     use crate::progress::Silent;
     use crate::{Pose, Primitive, Shape};
 
-    fn samples_of(cands: &[Primitive], spacing: f64) -> Vec<Vec<Point3<f64>>> {
-        cands.iter().map(|p| p.sample_surface(spacing)).collect()
+    fn samples_of(cands: &[Primitive], spacing: f64) -> Vec<CandidateSamples> {
+        (cands.iter())
+            .map(|p| CandidateSamples {
+                points: p.sample_surface(spacing),
+                weight: 1.0,
+                partial: false,
+            })
+            .collect()
     }
 
     fn square(side: f64, x: f64, y: f64) -> Primitive {
@@ -171,7 +185,16 @@ mod tests {
             .collect();
         let o = options();
         let samples = samples_of(&cands, o.sample_spacing);
-        let e = decide_existence(&points, &cands, &samples, &cost, &o, &Silent).unwrap();
+        let e = decide_existence(
+            &points,
+            &PointIndex::new(&points),
+            &cands,
+            &samples,
+            &cost,
+            &o,
+            &Silent,
+        )
+        .unwrap();
         assert_eq!(e.exists, [true, false, false, false, false, false]);
 
         // Brute force over all 2^6 scenes of the loss with the description lengths.
@@ -186,7 +209,7 @@ mod tests {
                     .map(|y| (x - y).norm_squared())
                     .fold(f64::INFINITY, f64::min)
             };
-            *g = s.iter().map(nearest).sum::<f64>() + c;
+            *g = s.points.iter().map(nearest).sum::<f64>() + c;
         }
         let mut eval = Evaluator::new(&coefficients);
         let values: Vec<f64> = (0..1u32 << cands.len())
@@ -212,7 +235,16 @@ mod tests {
         let cands = candidates();
         let zero = vec![0.0; cands.len()];
         let samples = samples_of(&cands, options().sample_spacing);
-        let e = decide_existence(&points, &cands, &samples, &zero, &options(), &Silent).unwrap();
+        let e = decide_existence(
+            &points,
+            &PointIndex::new(&points),
+            &cands,
+            &samples,
+            &zero,
+            &options(),
+            &Silent,
+        )
+        .unwrap();
         assert!(!e.exists[5], "a square with no points near never exists");
         let whole = e.exists[0] as usize;
         let quarters = e.exists[1..5].iter().filter(|&&x| x).count();
@@ -223,7 +255,16 @@ mod tests {
     fn no_candidates_costs_the_cap_per_point() {
         let points = unit_square_points();
 
-        let e = decide_existence(&points, &[], &[], &[], &options(), &Silent).unwrap();
+        let e = decide_existence(
+            &points,
+            &PointIndex::new(&points),
+            &[],
+            &[],
+            &[],
+            &options(),
+            &Silent,
+        )
+        .unwrap();
         assert!(e.exists.is_empty());
         assert!((e.solution.binary.total - points.len() as f64 * 0.01).abs() < 1e-9);
     }

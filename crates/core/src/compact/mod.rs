@@ -18,5 +18,5 @@ mod model;
 
 pub use model::{
     CAP_SIGMAS, CAP_SPACINGS, CompactModel, CompactOptions, EXISTENCE_BETA, MAX_CANDIDATE_SAMPLES,
-    SAMPLE_SPACINGS, compact_model,
+    PRIMITIVE_TERM_SAMPLES, SAMPLE_SPACINGS, compact_model,
 };

@@ -63,7 +63,7 @@ pub(crate) use sample::{voxel_grid, voxel_subsample};
 
 use crate::check;
 use crate::spatial::PointIndex;
-use crate::{Error, Primitive, Result};
+use crate::{Error, Primitive, Result, StageTimes, Stopwatch};
 use merge::{Part, merge_parts};
 use split::Splitter;
 
@@ -231,14 +231,24 @@ pub fn detect(
     index: &PointIndex,
     options: &DetectOptions,
 ) -> Result<Detection> {
+    detect_timed(points, index, options).map(|(detection, _)| detection)
+}
+
+/// [`detect`], and the wall time of each of its steps (module docs: `spacing`,
+/// `subsample`, `normals`, `noise`, `grow`, `split`, `merge`, `expand`, `leftovers`).
+pub fn detect_timed(
+    points: &[Point3<f64>],
+    index: &PointIndex,
+    options: &DetectOptions,
+) -> Result<(Detection, StageTimes)> {
     options.validate()?;
     check_input(points, index)?;
+    let mut clock = Stopwatch::start();
     let Some(spacing) = index.median_spacing(points, SPACING_PROBES) else {
-        return Ok(Detection::nothing(
-            points.len(),
-            options.noise.unwrap_or(0.0),
-        ));
+        let nothing = Detection::nothing(points.len(), options.noise.unwrap_or(0.0));
+        return Ok((nothing, clock.times));
     };
+    clock.lap("spacing");
     let sub = voxel_subsample(
         points,
         spacing,
@@ -256,8 +266,10 @@ pub fn detect(
     } else {
         index
     };
+    clock.lap("subsample");
     let k = options.neighbours.unwrap_or(DEFAULT_NEIGHBOURS);
     let nb = Neighbourhoods::new(&samples, sample_index, k);
+    clock.lap("normals");
     let radius = median_radius(&nb);
     let pitch = voxel.unwrap_or(spacing);
     let (fine, coarse) = match options.noise {
@@ -281,6 +293,7 @@ pub fn detect(
             .collect(),
     };
     let tolerance = options.tolerance.unwrap_or(DEFAULT_TOLERANCE);
+    clock.lap("noise");
     let grow = GrowParams {
         neighbours: options.grow_neighbours.unwrap_or(DEFAULT_GROW_NEIGHBOURS),
         cos_angle: angles.iter().map(|a| a.cos()).collect(),
@@ -294,6 +307,7 @@ pub fn detect(
         .into_iter()
         .filter(|r| r.len() >= min_points)
         .collect();
+    clock.lap("grow");
     let splitter = Splitter {
         samples: &samples,
         nb: &nb,
@@ -307,8 +321,10 @@ pub fn detect(
         .into_par_iter()
         .flat_map_iter(|ids| splitter.parts(ids))
         .collect();
+    clock.lap("split");
     let angle = normals::median(&mut angles.clone()).unwrap_or(0.0);
     let parts = merge_parts(parts, &samples, angle.cos(), tolerance);
+    clock.lap("merge");
     let sampled = expand::Samples {
         points: &samples,
         ids: &sample_ids,
@@ -316,6 +332,7 @@ pub fn detect(
         nb: &nb,
     };
     let mut detection = expand::expand(points, &sampled, parts, grow.neighbours, tolerance);
+    clock.lap("expand");
     let model_noise = coarse.global().max(fine.global());
     leftover::Leftovers {
         spacing,
@@ -327,13 +344,14 @@ pub fn detect(
         cos_angle: angle.cos(),
     }
     .absorb(points, &mut detection);
+    clock.lap("leftovers");
     detection.noise = fine.global();
     detection.model_noise = model_noise;
     detection.spacing = spacing;
     detection.angle = angle;
     detection.voxel = voxel;
     detection.samples = samples.len();
-    Ok(detection)
+    Ok((detection, clock.times))
 }
 
 /// Checks that `points` is not empty, is finite and is what `index` indexes.

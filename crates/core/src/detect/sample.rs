@@ -4,9 +4,8 @@
 //! voxel's centre), so every result still names input points; the other points are
 //! handed to the segment of their nearest sample afterwards ([`super::expand`]).
 
-use std::collections::HashMap;
-
 use nalgebra::Point3;
+use rayon::prelude::*;
 
 /// The voxel edge grows by this factor beyond the ratio that the area scaling predicts,
 /// so the loop of [`voxel_subsample`] ends after one or two passes.
@@ -55,14 +54,22 @@ pub fn voxel_grid(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
 }
 
 /// For each voxel of edge `edge` that holds a point, the lowest index of its points, in
-/// no particular order.
+/// no particular order. A parallel sort of (voxel, index) pairs: 32 bytes a point, and
+/// the same answer on any number of threads.
 fn occupied(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
-    let mut first: HashMap<[i64; 3], usize> = HashMap::new();
-    for (i, p) in points.iter().enumerate() {
-        let cell = p.coords.map(|c| (c / edge).floor() as i64);
-        first.entry([cell.x, cell.y, cell.z]).or_insert(i);
-    }
-    first.into_values().collect()
+    let mut cells: Vec<([i64; 3], usize)> = points
+        .par_iter()
+        .enumerate()
+        .map(|(i, p)| {
+            let cell = p.coords.map(|c| (c / edge).floor() as i64);
+            ([cell.x, cell.y, cell.z], i)
+        })
+        .collect();
+    cells.par_sort_unstable();
+    cells
+        .chunk_by(|a, b| a.0 == b.0)
+        .map(|run| run[0].1)
+        .collect()
 }
 
 #[cfg(test)]

@@ -49,6 +49,7 @@ pub(super) fn fit_compact(
         lattice_seconds: model.detect_seconds,
         solve_seconds: model.existence_seconds,
         passes: 1,
+        stages: model.times.clone(),
         ..Default::default()
     };
     Ok(FitResult {

@@ -2,8 +2,9 @@
 
 use nalgebra::Point3;
 
+use super::FitResult;
 use super::pass::{fit_pass, refine_context};
-use super::{FitResult, binary_chamfer};
+use super::result::binary_chamfer_indexed;
 use crate::metrics::point_to_model_distances;
 use crate::progress::Progress;
 use crate::refine::refine;
@@ -66,7 +67,7 @@ pub(super) fn fill_gaps(
     let shapes = s.shapes();
     let ctx = refine_context(cloud, index, s, &shapes);
     let refined = refine(&ctx, &union, &options)?;
-    let before = binary_chamfer(cloud, &result.primitives, s)?.total;
+    let before = binary_chamfer_indexed(cloud, index, &result.primitives, s)?.total;
     progress.message(&format!(
         "coarse to fine: {} unexplained points, {} primitives added, binary chamfer {before:.6} → {:.6}",
         sub.len(),

@@ -69,7 +69,7 @@ pub use work::{DEFAULT_WORK_PER_POINT, estimate_work};
 use crate::frame::realign;
 use crate::progress::Progress;
 use crate::spatial::PointIndex;
-use crate::{Error, PointCloud, Result};
+use crate::{Error, PointCloud, Result, Stopwatch};
 use gaps::fill_gaps;
 use pass::fit_pass;
 
@@ -77,6 +77,28 @@ use pass::fit_pass;
 /// accepts: squared distances, and sums of millions of them, then stay far inside the
 /// range of `f64` (1e±308). A cloud outside it is refused with the advice to rescale.
 pub const EXTENT_RANGE: (f64, f64) = (1e-100, 1e100);
+
+/// The re-aligned pass runs only when the re-aligned lattice moves some candidate by at
+/// least this many sample spacings: below half a sample spacing the two lattices sample
+/// the same surfaces, and the second pass would repeat the first.
+pub const REALIGN_MIN_SAMPLE_SHIFT: f64 = 0.5;
+
+/// How far (scene units) moving the lattice of `settings` to `frame` and `origin` moves
+/// a candidate at most, over a cloud within `extent` of the lattice origin (scene units): the rotation
+/// angle times the reach (`extent` plus a candidate's size), plus the shift of the grid's
+/// phase (the origin difference modulo the spacing, per lattice axis).
+pub(crate) fn lattice_shift(
+    settings: &Settings,
+    frame: &nalgebra::UnitQuaternion<f64>,
+    origin: &nalgebra::Point3<f64>,
+    extent: f64,
+) -> f64 {
+    let angle = settings.frame.angle_to(frame);
+    let s = settings.spacing;
+    let delta = settings.frame.inverse() * (origin - settings.origin);
+    let phase = delta.map(|d| d - s * (d / s).round()).norm();
+    angle * (extent + settings.size) + phase
+}
 
 /// A cloud a fit can work on: not empty, every coordinate finite, and an extent within
 /// [`EXTENT_RANGE`].
@@ -117,29 +139,74 @@ fn validate_cloud(cloud: &PointCloud) -> Result<()> {
 /// existence instead (thesis ch. 4; the cloud needs sensor origins).
 pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) -> Result<FitResult> {
     validate_cloud(cloud)?;
-    if let MethodOptions::Mcmc(_) = options.method {
-        return mcmc::fit_mcmc(cloud, options, progress);
+    if let Some(result) = own_pipeline(cloud, options, progress) {
+        return result;
     }
-    if let Some(shift) = recentre::local_shift(cloud) {
-        return recentre::fit_shifted(cloud, options, progress, shift);
-    }
+    let mut clock = Stopwatch::start();
     let index = PointIndex::new(&cloud.points);
-    if options.kinds.is_empty() {
-        return compact::fit_compact(cloud, &index, options, progress);
+    clock.lap("index");
+    let mut result = fit_on_index(cloud, &index, options, progress)?;
+    clock.nest("fit", &result.stats.stages);
+    result.stats.stages = clock.times;
+    Ok(result)
+}
+
+/// [`fit()`] with `index`, a kd-tree over exactly `cloud.points`, already built: a caller
+/// that measures the result afterwards ([`crate::metrics::evaluate_indexed`]) builds
+/// it once for both.
+pub fn fit_indexed(
+    cloud: &PointCloud,
+    index: &PointIndex,
+    options: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<FitResult> {
+    validate_cloud(cloud)?;
+    crate::check::same_len("indexed points", index.len(), "points", cloud.len())?;
+    match own_pipeline(cloud, options, progress) {
+        Some(result) => result,
+        None => fit_on_index(cloud, index, options, progress),
     }
-    let settings = Settings::resolve(cloud, &index, options)?;
+}
+
+/// The fits that do not use the caller's index: the ray likelihood (mcmc) and a
+/// cloud far from the origin, fitted in a local frame (`recentre.rs`); `None` for the
+/// rest.
+fn own_pipeline(
+    cloud: &PointCloud,
+    options: &FitOptions,
+    progress: &dyn Progress,
+) -> Option<Result<FitResult>> {
+    if let MethodOptions::Mcmc(_) = options.method {
+        return Some(mcmc::fit_mcmc(cloud, options, progress));
+    }
+    let shift = recentre::local_shift(cloud)?;
+    Some(recentre::fit_shifted(cloud, options, progress, shift))
+}
+
+/// The compact model or the lattice pipeline of a validated cloud near the origin.
+fn fit_on_index(
+    cloud: &PointCloud,
+    index: &PointIndex,
+    options: &FitOptions,
+    progress: &dyn Progress,
+) -> Result<FitResult> {
+    if options.kinds.is_empty() {
+        return compact::fit_compact(cloud, index, options, progress);
+    }
+    let mut clock = Stopwatch::start();
+    let settings = Settings::resolve(cloud, index, options)?;
+    clock.lap("settings");
     progress.checkpoint()?;
     progress.message(&format!("settings: {}", settings.to_json()));
-    let first = fill_gaps(
-        cloud,
-        &index,
-        fit_pass(cloud, &index, settings, progress)?,
-        progress,
-    )?;
+    let pass = fit_pass(cloud, index, settings, progress)?;
+    clock.nest("pass", &pass.stats.stages);
+    let mut first = fill_gaps(cloud, index, pass, progress)?;
+    clock.lap("gaps");
     let realign_pass = first.settings.refine.is_some()
         && first.settings.frame_source == "auto"
         && !first.primitives.is_empty();
     if !realign_pass {
+        first.stats.stages = clock.times;
         return Ok(first);
     }
     let (frame, origin) = realign(
@@ -147,25 +214,41 @@ pub fn fit(cloud: &PointCloud, options: &FitOptions, progress: &dyn Progress) ->
         &first.settings.frame,
         first.settings.spacing,
     );
+    // The farthest a point of the cloud's bounding box lies from the lattice origin.
+    let extent = cloud.bounds().map_or(0.0, |(lo, hi)| {
+        let centre = nalgebra::center(&lo, &hi);
+        (centre - first.settings.origin).norm() + (hi - lo).norm() / 2.0
+    });
+    let moved = lattice_shift(&first.settings, &frame, &origin, extent);
+    if moved < REALIGN_MIN_SAMPLE_SHIFT * first.settings.sample_spacing {
+        progress.message(&format!(
+            "re-aligned lattice skipped: it moves candidates by {moved:.3e} at most, under \
+             {REALIGN_MIN_SAMPLE_SHIFT} sample spacing"
+        ));
+        first.stats.stages = clock.times;
+        return Ok(first);
+    }
     let settings = first.settings.realigned(frame, origin);
     progress.checkpoint()?;
     progress.message(&format!(
-        "re-aligned lattice: frame {:?}, origin {origin:?}",
+        "re-aligned lattice: frame {:?}, origin {origin:?}, candidates move by {moved:.3e} at most",
         frame.quaternion().coords
     ));
-    let second = fill_gaps(
-        cloud,
-        &index,
-        fit_pass(cloud, &index, settings, progress)?,
-        progress,
-    )?;
-    let loss = |r: &FitResult| binary_chamfer(cloud, &r.primitives, &r.settings).map(|l| l.total);
+    let pass = fit_pass(cloud, index, settings, progress)?;
+    clock.nest("realigned_pass", &pass.stats.stages);
+    let second = fill_gaps(cloud, index, pass, progress)?;
+    clock.lap("realigned_gaps");
+    let loss = |r: &FitResult| {
+        result::binary_chamfer_indexed(cloud, index, &r.primitives, &r.settings).map(|l| l.total)
+    };
     let (a, b) = (loss(&first)?, loss(&second)?);
     progress.checkpoint()?;
     progress.message(&format!(
         "binary chamfer: first pass {a:.6}, re-aligned pass {b:.6}"
     ));
     let mut best = if b <= a { second } else { first };
+    clock.lap("pick");
     best.stats.passes = 2;
+    best.stats.stages = clock.times;
     Ok(best)
 }

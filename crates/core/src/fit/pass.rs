@@ -13,7 +13,7 @@ use crate::ray::{FreeSpace, Rays};
 use crate::refine::{RefineContext, Refined, refine};
 use crate::solve::solve;
 use crate::spatial::PointIndex;
-use crate::{Error, PointCloud, Primitive, Result, budget, check};
+use crate::{Error, PointCloud, Primitive, Result, StageTimes, budget, check};
 
 /// What [`refine`] needs from a fit under `settings` (`shapes` = `settings.shapes()`).
 pub(super) fn refine_context<'a>(
@@ -188,6 +188,16 @@ pub(super) fn fit_pass(
         primitives = r.primitives.clone();
         refined = Some(r);
     }
+    let refine_seconds = refined.as_ref().map_or(0.0, |r| r.seconds);
+    let mut stages = StageTimes::new();
+    for (stage, seconds) in [
+        ("lattice", lattice_seconds),
+        ("coefficients", coefficient_seconds),
+        ("solve", solve_seconds),
+        ("refine", refine_seconds),
+    ] {
+        stages.add(stage, seconds);
+    }
     let stats = FitStats {
         points: cloud.len(),
         lattice_candidates,
@@ -199,10 +209,11 @@ pub(super) fn fit_pass(
         lattice_seconds,
         coefficient_seconds,
         solve_seconds,
-        refine_seconds: refined.as_ref().map_or(0.0, |r| r.seconds),
+        refine_seconds,
         refine_dropped: refined.as_ref().map_or(0, |r| r.dropped),
         passes: 1,
         filled: 0,
+        stages,
     };
     Ok(FitResult {
         settings,

@@ -12,7 +12,7 @@ use crate::lattice::CandidateSet;
 use crate::metrics::Metrics;
 use crate::progress::Silent;
 use crate::solve::{Solution, StopReason};
-use crate::{Error, PointCloud, Primitive, Result};
+use crate::{Error, PointCloud, Primitive, Result, StageTimes};
 
 /// Size and timing facts of a fit, for the summary and the benchmark table.
 #[derive(Debug, Clone, Default)]
@@ -45,6 +45,9 @@ pub struct FitStats {
     pub passes: usize,
     /// Primitives proposed by the coarse-to-fine gap filling (before merging).
     pub filled: usize,
+    /// Wall time of every stage, in order (`detect.normals`, `existence.solve`, …; a
+    /// lattice fit: `pass.lattice`, `gaps`, `realigned_pass.solve`, …).
+    pub stages: StageTimes,
 }
 
 /// The result of [`super::fit`].
@@ -194,12 +197,23 @@ pub fn binary_chamfer(
     primitives: &[Primitive],
     settings: &Settings,
 ) -> Result<LossValue> {
+    let index = crate::PointIndex::new(&cloud.points);
+    binary_chamfer_indexed(cloud, &index, primitives, settings)
+}
+
+/// [`binary_chamfer`] with `index`, a kd-tree over exactly `cloud.points`.
+pub(super) fn binary_chamfer_indexed(
+    cloud: &PointCloud,
+    index: &crate::PointIndex,
+    primitives: &[Primitive],
+    settings: &Settings,
+) -> Result<LossValue> {
     let set = CandidateSet::from_primitives(primitives, settings.sample_spacing)?;
     let options = ChamferOptions {
         alpha: None,
         beta: None,
         ..settings.chamfer.clone()
     };
-    let coeffs = Coefficients::build(&cloud.points, &set, &options, &Silent)?;
+    let coeffs = Coefficients::build_indexed(&cloud.points, index, &set, &options, &Silent)?;
     Ok(Evaluator::new(&coeffs).binary_value(&vec![true; set.len()]))
 }

@@ -262,3 +262,31 @@ fn result_json_reads_back_to_the_same_result() {
         "{e}"
     );
 }
+
+#[test]
+fn the_realigned_lattice_shift_counts_rotation_at_the_cloud_edge_and_grid_phase() {
+    let c = corner();
+    let index = PointIndex::new(&c.points);
+    let options = FitOptions {
+        size: Some(1.0),
+        ..FitOptions::default()
+    };
+    let options = FitOptions {
+        kinds: vec![ShapeKind::Square],
+        ..options
+    };
+    let s = Settings::resolve(&c, &index, &options).unwrap();
+    let spacing = s.spacing;
+    // A whole number of lattice steps along every axis is the same lattice.
+    let same = s.origin + s.frame * nalgebra::Vector3::new(spacing, -2.0 * spacing, 3.0 * spacing);
+    assert!(lattice_shift(&s, &s.frame, &same, 10.0) < 1e-12);
+    // A quarter step along one axis moves every candidate by a quarter step.
+    let quarter = s.origin + s.frame * nalgebra::Vector3::new(0.25 * spacing, 0.0, 0.0);
+    let moved = lattice_shift(&s, &s.frame, &quarter, 10.0);
+    assert!((moved - 0.25 * spacing).abs() < 1e-12, "{moved}");
+    // A rotation of θ moves a candidate at the reach (extent + size) by θ times it.
+    let theta = 1e-3;
+    let turned = nalgebra::UnitQuaternion::from_euler_angles(0.0, 0.0, theta) * s.frame;
+    let moved = lattice_shift(&s, &turned, &s.origin, 10.0);
+    assert!((moved - theta * (10.0 + s.size)).abs() < 1e-9, "{moved}");
+}

@@ -97,25 +97,28 @@ impl CandidateSet {
     /// `sample_spacing`), e.g. to score a ground truth with the fitter's loss. Planes
     /// share a template only when their polygons are equal.
     pub fn from_primitives(primitives: &[Primitive], sample_spacing: f64) -> Result<Self> {
-        let mut templates: Vec<Template> = Vec::new();
+        let mut shapes: Vec<&Shape> = Vec::new();
         let mut template_of = Vec::with_capacity(primitives.len());
         for p in primitives {
             p.shape.validate()?;
-            let same = |t: &Template| match (&t.shape, &p.shape) {
+            let same = |t: &&Shape| match (t, &p.shape) {
                 (Shape::Plane(a), Shape::Plane(b)) => a == b,
-                _ => {
-                    t.shape.sizes_json() == p.shape.sizes_json() && t.shape.kind() == p.shape.kind()
-                }
+                _ => t.sizes_json() == p.shape.sizes_json() && t.kind() == p.shape.kind(),
             };
-            let t = match templates.iter().position(same) {
+            let t = match shapes.iter().position(same) {
                 Some(t) => t,
                 None => {
-                    templates.push(Template::new(p.shape.clone(), sample_spacing));
-                    templates.len() - 1
+                    shapes.push(&p.shape);
+                    shapes.len() - 1
                 }
             };
             template_of.push(t as u32);
         }
+        // Sampling and indexing each distinct shape is the work: in parallel.
+        let templates: Vec<Template> = shapes
+            .par_iter()
+            .map(|&shape| Template::new(shape.clone(), sample_spacing))
+            .collect();
         let poses = primitives.iter().map(|p| p.pose).collect();
         Self::from_parts(templates, template_of, poses)
     }

@@ -69,11 +69,16 @@ pub fn nearest_cloud_distances(queries: &[Point3<f64>], cloud: &[Point3<f64>]) -
     if cloud.is_empty() {
         return Err(Error::EmptyCloud);
     }
-    let tree = PointIndex::new(cloud);
-    Ok(queries
+    Ok(nearest_indexed_distances(queries, &PointIndex::new(cloud)))
+}
+
+/// For every query, the distance to the nearest point of the cloud `tree` indexes
+/// (infinite for an empty one). Parallel.
+fn nearest_indexed_distances(queries: &[Point3<f64>], tree: &PointIndex) -> Vec<f64> {
+    queries
         .par_iter()
         .map(|q| tree.nearest(q).map_or(f64::INFINITY, |(_, d2)| d2.sqrt()))
-        .collect())
+        .collect()
 }
 
 /// Share of `distances` that are ≤ `tau` (0 for an empty slice).
@@ -387,7 +392,12 @@ pub fn default_coverage_tau(points: &[Point3<f64>]) -> f64 {
     if points.len() < 2 {
         return 0.01 * diagonal;
     }
-    let tree = PointIndex::new(points);
+    coverage_tau_indexed(points, &PointIndex::new(points))
+}
+
+/// [`default_coverage_tau`] with `tree`, a kd-tree over exactly `points`, already built.
+fn coverage_tau_indexed(points: &[Point3<f64>], tree: &PointIndex) -> f64 {
+    let diagonal = bounds_of(points).map_or(0.0, |(lo, hi)| (hi - lo).norm());
     let stride = points.len().div_ceil(10_000);
     let nn: Vec<f64> = points
         .par_iter()
@@ -428,20 +438,30 @@ pub fn evaluate(
     if cloud.is_empty() {
         return Err(Error::EmptyCloud);
     }
-    let tau = options
-        .coverage_tau
-        .unwrap_or_else(|| default_coverage_tau(cloud));
+    evaluate_indexed(cloud, &PointIndex::new(cloud), model, truth, options)
+}
+
+/// [`evaluate`] with `index`, a kd-tree over exactly `cloud`, already built (the fit's:
+/// [`crate::fit_indexed`]).
+pub fn evaluate_indexed(
+    cloud: &[Point3<f64>],
+    index: &PointIndex,
+    model: &[Primitive],
+    truth: Option<&[Primitive]>,
+    options: &MetricsOptions,
+) -> Result<Metrics> {
+    if cloud.is_empty() {
+        return Err(Error::EmptyCloud);
+    }
+    check::same_len("indexed points", index.len(), "points", cloud.len())?;
+    let tau = (options.coverage_tau).unwrap_or_else(|| coverage_tau_indexed(cloud, index));
     check::non_negative("coverage_tau", tau)?;
     let spacing = options
         .sample_spacing
         .unwrap_or_else(|| default_sample_spacing(model, cloud.len()));
     let d_pm = point_to_model_distances(cloud, model)?;
     let samples = model_samples(model, spacing)?;
-    let d_mp = if samples.is_empty() {
-        Vec::new()
-    } else {
-        nearest_cloud_distances(&samples, cloud)?
-    };
+    let d_mp = nearest_indexed_distances(&samples, index);
     let chamfer = if model.is_empty() {
         f64::INFINITY
     } else {

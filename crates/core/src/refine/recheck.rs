@@ -22,7 +22,7 @@ pub(super) fn binary_loss(ctx: &RefineContext<'_>, prims: &[Primitive]) -> Resul
         return Ok(ctx.chamfer.point_weight * ctx.chamfer.cap * ctx.points.len() as f64);
     }
     let set = CandidateSet::from_primitives(prims, ctx.sample_spacing)?;
-    let coeffs = Coefficients::build(ctx.points, &set, ctx.chamfer, &Silent)?;
+    let coeffs = Coefficients::build_indexed(ctx.points, ctx.index, &set, ctx.chamfer, &Silent)?;
     Ok(Evaluator::new(&coeffs)
         .binary_value(&vec![true; set.len()])
         .total)
@@ -31,7 +31,7 @@ pub(super) fn binary_loss(ctx: &RefineContext<'_>, prims: &[Primitive]) -> Resul
 /// Which primitives stay: the discrete polish started from "all exist".
 pub(super) fn recheck(ctx: &RefineContext<'_>, prims: &[Primitive]) -> Result<Vec<bool>> {
     let set = CandidateSet::from_primitives(prims, ctx.sample_spacing)?;
-    let coeffs = Coefficients::build(ctx.points, &set, ctx.chamfer, &Silent)?;
+    let coeffs = Coefficients::build_indexed(ctx.points, ctx.index, &set, ctx.chamfer, &Silent)?;
     let mut exists = vec![true; set.len()];
     polish(
         &coeffs,
