@@ -1,11 +1,8 @@
 //! A polygon's edges bucketed into horizontal slabs of its y-range, so that the
-//! point-in-polygon test and the closest edge of a [`super::PlaneShape`] look at the
-//! edges near the query's y instead of at all of them.
-//!
-//! Both queries give exactly the answers of a scan over every edge: an edge that a
-//! horizontal line at `y` crosses spans `y`, so it is listed in the slab of `y`; and
-//! slabs are visited outward from the query's until the vertical gap to the next one
-//! exceeds the best distance found, ties going to the lower edge index as in a scan.
+//! point-in-polygon test of a [`super::PlaneShape`] looks at the edges near the query's
+//! y instead of at all of them. It gives exactly the answer of a scan over every edge:
+//! an edge that a horizontal line at `y` crosses spans `y`, so it is listed in the slab
+//! of `y`.
 
 use nalgebra::Point2;
 
@@ -22,8 +19,6 @@ pub(super) struct EdgeSlabs {
     height: f64,
     /// Number of slabs (≥ 1).
     count: usize,
-    /// Number of edges.
-    edges: usize,
     /// Slab `s` lists `ids[starts[s]..starts[s + 1]]`, ascending edge indices.
     starts: Vec<u32>,
     ids: Vec<u32>,
@@ -38,7 +33,6 @@ impl EdgeSlabs {
             y0: lo_y,
             height,
             count,
-            edges: edges.len(),
             starts: Vec::new(),
             ids: Vec::new(),
         };
@@ -76,62 +70,6 @@ impl EdgeSlabs {
         &self.ids[self.starts[s] as usize..self.starts[s + 1] as usize]
     }
 
-    /// The vertical distance from `y` to slab `s` (0 inside it).
-    fn gap(&self, s: usize, y: f64) -> f64 {
-        let bottom = self.y0 + s as f64 * self.height;
-        (bottom - y).max(y - (bottom + self.height)).max(0.0)
-    }
-
-    /// The edge index minimising `distance2(edge)` (ties: the lower index), given that
-    /// an edge in slab `s` is at least `gap(s, q_y)` from the query; `None` without
-    /// edges. `distance2` is the squared distance from the query to an edge.
-    pub(super) fn closest(&self, q_y: f64, distance2: impl Fn(usize) -> f64) -> Option<usize> {
-        let start = self.slab_of(q_y);
-        let mut best: Option<(f64, usize)> = None;
-        let visit = |s: usize, best: &mut Option<(f64, usize)>| {
-            for &e in self.slab(s) {
-                let d2 = distance2(e as usize);
-                let better = best.is_none_or(|(b, i)| d2 < b || (d2 == b && (e as usize) < i));
-                if better {
-                    *best = Some((d2, e as usize));
-                }
-            }
-        };
-        visit(start, &mut best);
-        // A query far from the polygon reaches most slabs, whose lists repeat long
-        // edges: one pass over every edge is then cheaper, and gives the same answer.
-        let reach = best.map_or(f64::INFINITY, |(d2, _)| d2).sqrt();
-        if reach / self.height >= (self.count / 4) as f64 {
-            let mut scan: Option<(f64, usize)> = None;
-            for e in 0..self.edges {
-                let d2 = distance2(e);
-                if scan.is_none_or(|(b, _)| d2 < b) {
-                    scan = Some((d2, e));
-                }
-            }
-            return scan.map(|(_, e)| e);
-        }
-        for step in 1..self.count {
-            let (below, above) = (start.checked_sub(step), start + step);
-            let candidates = [below, (above < self.count).then_some(above)];
-            if candidates.iter().all(Option::is_none) {
-                break;
-            }
-            let reach = best.map_or(f64::INFINITY, |(d2, _)| d2);
-            let mut any = false;
-            for s in candidates.into_iter().flatten() {
-                let g = self.gap(s, q_y);
-                if g * g <= reach {
-                    visit(s, &mut best);
-                    any = true;
-                }
-            }
-            if !any {
-                break;
-            }
-        }
-        best.map(|(_, e)| e)
-    }
 }
 
 #[cfg(test)]
@@ -154,14 +92,8 @@ mod tests {
         (0..n).map(|i| [v[i], v[(i + 1) % n]]).collect()
     }
 
-    fn segment_distance2(q: &Point2<f64>, [a, b]: &[Point2<f64>; 2]) -> f64 {
-        let ab = b - a;
-        let t = ((q - a).dot(&ab) / ab.norm_squared()).clamp(0.0, 1.0);
-        (q - (a + ab * t)).norm_squared()
-    }
-
     #[test]
-    fn slab_queries_agree_with_a_scan_of_every_edge() {
+    fn the_slab_of_y_lists_every_edge_the_line_at_y_crosses() {
         for n in [3, 7, 40, 300] {
             let edges = ring(n);
             let (lo, hi) = edges
@@ -171,25 +103,18 @@ mod tests {
                 });
             let slabs = EdgeSlabs::new(&edges, lo, hi);
             for i in 0..400 {
-                let q = Point2::new(
-                    -3.0 + 6.0 * ((i * 37) % 400) as f64 / 400.0,
-                    -2.0 + 4.0 * i as f64 / 400.0,
-                );
-                // Crossing edges of the line y = q.y are all in the slab of q.y.
-                let crossing: Vec<u32> = (0..edges.len() as u32)
-                    .filter(|&e| {
-                        let [a, b] = edges[e as usize];
-                        (a.y > q.y) != (b.y > q.y)
-                    })
-                    .collect();
-                let near = slabs.near(q.y);
-                assert!(crossing.iter().all(|e| near.contains(e)), "n {n}, q {q:?}");
-                // The closest edge is the scan's (lowest index among the minima).
-                let d2 = |e: usize| segment_distance2(&q, &edges[e]);
-                let scan = (0..edges.len())
-                    .min_by(|&a, &b| d2(a).total_cmp(&d2(b)))
-                    .unwrap();
-                assert_eq!(slabs.closest(q.y, d2), Some(scan), "n {n}, q {q:?}");
+                let y = -2.0 + 4.0 * i as f64 / 400.0;
+                let near = slabs.near(y);
+                assert!(near.windows(2).all(|w| w[0] < w[1]));
+                for (e, [a, b]) in edges.iter().enumerate() {
+                    if (a.y > y) != (b.y > y) {
+                        assert!(near.contains(&(e as u32)), "n {n}, y {y}, edge {e}");
+                    }
+                }
+            }
+            // The slabs are a partition for the query, not a copy of every edge.
+            if n >= 40 {
+                assert!(slabs.near(0.0).len() < n / 4, "{}", slabs.near(0.0).len());
             }
         }
     }
@@ -199,8 +124,6 @@ mod tests {
         let edges = vec![[Point2::new(0.0, 0.0), Point2::new(1.0, 0.0)]];
         let slabs = EdgeSlabs::new(&edges, 0.0, 0.0);
         assert_eq!(slabs.near(5.0), &[0]);
-        assert_eq!(slabs.closest(-3.0, |_| 1.0), Some(0));
-        let none = EdgeSlabs::new(&[], 0.0, 1.0);
-        assert_eq!(none.closest(0.5, |_| 1.0), None);
+        assert_eq!(slabs.near(-5.0), &[0]);
     }
 }

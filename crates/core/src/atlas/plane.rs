@@ -10,8 +10,9 @@
 //!
 //! Queries are exact: a point's projection is inside the plane by the even–odd rule over
 //! all rings (holes and other parts included: parts are disjoint), otherwise its closest
-//! point lies on a ring edge. A query looks at the edges of the horizontal slabs near
-//! its projection (`edge_slabs.rs`), not at all of them.
+//! point lies on a ring edge. The inside test looks at the edges of the horizontal slab
+//! of the projection (`edge_slabs.rs`), the closest boundary point is found through a
+//! hierarchy over the triangulation (`bvh.rs`): neither scans every edge.
 
 use std::sync::Arc;
 
@@ -20,6 +21,7 @@ use nalgebra::{Point2, Point3, Vector3};
 use serde_json::Value;
 
 use super::TriMesh;
+use super::bvh::TriangleBvh;
 use super::edge_slabs::EdgeSlabs;
 use super::planar::plane_ray;
 use crate::error::Unit;
@@ -66,8 +68,10 @@ struct PlaneData {
     bounding_radius: f64,
     /// Axis-aligned bounds of the outlines: `(min, max)`.
     bounds: (Point2<f64>, Point2<f64>),
-    /// `edges` by horizontal slab, for the point queries.
+    /// `edges` by horizontal slab, for the inside test.
     slabs: EdgeSlabs,
+    /// A hierarchy over `mesh`'s triangles, for the closest point outside.
+    bvh: TriangleBvh,
 }
 
 impl std::fmt::Debug for PlaneShape {
@@ -159,6 +163,7 @@ impl PlaneShape {
             |(lo, hi), v| (lo.inf(v), hi.sup(v)),
         );
         let slabs = EdgeSlabs::new(&edges, bounds.0.y, bounds.1.y);
+        let bvh = TriangleBvh::new(&mesh);
         let inner = PlaneData {
             parts,
             edges,
@@ -167,6 +172,7 @@ impl PlaneShape {
             bounding_radius,
             bounds,
             slabs,
+            bvh,
         };
         Ok(PlaneShape {
             inner: Arc::new(inner),
@@ -234,14 +240,10 @@ impl PlaneShape {
         if self.contains(p.x, p.y) {
             return Point3::new(p.x, p.y, 0.0);
         }
-        let q = Point2::new(p.x, p.y);
-        let edges = &self.inner.edges;
-        let on_edge = |e: usize| closest_on_segment(&q, &edges[e][0], &edges[e][1]);
-        let closest = self
-            .inner
-            .slabs
-            .closest(q.y, |e| (q - on_edge(e)).norm_squared());
-        let c = closest.map_or(q, on_edge);
+        // Outside, the closest point lies on the boundary, which is the boundary of the
+        // triangulation: its hierarchy finds it in logarithmic time, near or far.
+        let q = Point3::new(p.x, p.y, 0.0);
+        let c = self.inner.bvh.closest_point(&q).unwrap_or(q);
         Point3::new(c.x, c.y, 0.0)
     }
 
