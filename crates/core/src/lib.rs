@@ -150,6 +150,7 @@ pub mod solve;
 mod spatial;
 mod surface;
 pub mod synth;
+pub mod tiles;
 
 pub use atlas::{MeshShape, Shape, ShapeKind, TriMesh};
 pub use cloud::{PointCloud, bounds_of};
