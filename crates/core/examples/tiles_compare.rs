@@ -33,7 +33,7 @@ fn main() {
     println!("floor: {} points, {} true primitives", cloud.len(), scene.truth.len());
     let options = FitOptions::default();
     let t = Instant::now();
-    let tiled = fit_tiled(&cloud, &options, tile, halo, &Silent).expect("tiled fit");
+    let tiled = fit_tiled(&cloud, &options, Some(tile), halo, &Silent).expect("tiled fit");
     let tiled_s = t.elapsed().as_secs_f64();
     let h = 3.0 * tiled.settings.point_spacing.max(1e-3);
     report("tiled", &cloud.points, &tiled.primitives, tiled_s, h);

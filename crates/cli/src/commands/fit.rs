@@ -11,12 +11,14 @@ use primfit_core::fit::{
     DEFAULT_SEED, FitOptions, McmcFitOptions, MethodOptions, fit, parse_types,
 };
 use primfit_core::io::{self, Encoding};
+use primfit_core::tiles::fit_tiled;
 use primfit_core::na::Point3;
 use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
 use primfit_core::{Limit, chamfer::PointModel as Model};
 
 use super::sizes::SizeArgs;
+use super::tiles::{TileArgs, hand_off};
 use super::{Output, check_output, parse_limit, parse_pair, parse_point, read_scene};
 use crate::progress::Bars;
 
@@ -144,6 +146,9 @@ pub struct FitArgs {
     /// Seed for every random choice.
     #[arg(allow_hyphen_values = true, long, default_value_t = DEFAULT_SEED)]
     pub seed: u64,
+    /// Tiled fitting of large surveys.
+    #[command(flatten)]
+    pub tiling: TileArgs,
 }
 
 impl FitArgs {
@@ -257,6 +262,10 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
         bail!("{}: given both as -o and as --mesh", a.display());
     }
     let options = args.options()?;
+    if let Some(address) = &args.tiling.scheduler {
+        let (o, m) = (args.output.as_deref(), args.mesh.as_deref());
+        return hand_off(&args.tiling, address, &args.scene, o, m, out.quiet);
+    }
     let cloud = read_scene(&args.scene, out)?;
     if args.method == "mcmc" && cloud.sensors.is_none() {
         bail!(
@@ -266,8 +275,13 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
         );
     }
     let bars = Bars::new(out.quiet, out.verbose);
-    let result = fit(&cloud, &options, &bars)
-        .with_context(|| format!("fitting {}", args.scene.display()))?;
+    let t = &args.tiling;
+    let result = if t.tiles {
+        fit_tiled(&cloud, &options, t.tile_size, t.halo, &bars)
+    } else {
+        fit(&cloud, &options, &bars)
+    }
+    .with_context(|| format!("fitting {}", args.scene.display()))?;
     let metrics = super::eval::measure(&cloud, &result.primitives, None)?;
     let encoding = if args.ascii {
         Encoding::Ascii

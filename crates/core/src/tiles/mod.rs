@@ -18,6 +18,8 @@
 mod grid;
 mod merge;
 mod stream;
+#[cfg(test)]
+mod tests;
 
 pub use grid::{MAX_TILES, TileGrid};
 pub use merge::{
@@ -38,6 +40,19 @@ pub const DEFAULT_HALO_SHARE: f64 = 0.1;
 
 /// Tiles with fewer points than this are not fitted (nothing to detect in them).
 pub const MIN_TILE_POINTS: usize = 100;
+
+/// Points a tile holds, about, when no tile size is given ([`default_tile_size`]): a fit
+/// of this many points stays within a few hundred MiB.
+pub const DEFAULT_TILE_POINTS: f64 = 500_000.0;
+
+/// The tile side (scene units) at which a survey of `points` points over the xy box of
+/// `lo..hi` has about [`DEFAULT_TILE_POINTS`] per tile (points spread evenly in xy),
+/// rounded up to a whole number of scene units.
+pub fn default_tile_size(lo: &Point3<f64>, hi: &Point3<f64>, points: u64) -> f64 {
+    let area = ((hi.x - lo.x) * (hi.y - lo.y)).max(f64::MIN_POSITIVE);
+    let side = (area * DEFAULT_TILE_POINTS / (points.max(1) as f64)).sqrt();
+    side.ceil().max(1.0)
+}
 
 /// The halo (scene units) of tiles of side `tile_size` when `halo` is `None`.
 pub fn default_halo(tile_size: f64, halo: Option<f64>) -> f64 {
@@ -179,15 +194,16 @@ pub fn merge_tiles(tiles: Vec<TileFit>) -> Result<FitResult> {
 }
 
 /// Fits `cloud` tile after tile on a grid of `tile_size` with `halo` (scene units; `None`:
-/// [`DEFAULT_HALO_SHARE`] of the tile size) and merges the tiles; `progress` counts tiles.
+/// [`DEFAULT_HALO_SHARE`] of the tile size; `tile_size` `None`: [`default_tile_size`]) and merges the tiles; `progress` counts tiles.
 pub fn fit_tiled(
     cloud: &PointCloud,
     options: &FitOptions,
-    tile_size: f64,
+    tile_size: Option<f64>,
     halo: Option<f64>,
     progress: &dyn Progress,
 ) -> Result<FitResult> {
     let (lo, hi) = cloud.bounds().ok_or(Error::EmptyCloud)?;
+    let tile_size = tile_size.unwrap_or_else(|| default_tile_size(&lo, &hi, cloud.len() as u64));
     let grid = TileGrid::new(&lo, &hi, tile_size, default_halo(tile_size, halo))?;
     // Bucket the points once per tile (a point in a halo goes to every tile that sees it).
     let mut buckets: Vec<Vec<Point3<f64>>> = vec![Vec::new(); grid.len()];
