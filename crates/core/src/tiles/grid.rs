@@ -10,6 +10,12 @@ use crate::{Error, Result, check};
 /// that the per-tile overhead dominates; the error asks for a larger tile.
 pub const MAX_TILES: usize = 1_000_000;
 
+/// The seam band's half width as a share of the halo: the points the coordinator keeps
+/// are those this close to a seam (a quarter of the halo: the band where pieces of the
+/// two sides overlap most), so it holds about `2 · SEAM_BAND_SHARE · halo / tile_size`
+/// of the survey per seam direction.
+pub const SEAM_BAND_SHARE: f64 = 0.25;
+
 /// A grid of `nx × ny` square tiles of side `tile_size` (scene units) covering the xy
 /// bounding box of a survey from `origin` (the box's minimum corner). Tile `t` is column
 /// `t % nx`, row `t / nx`; its **core** is its square, its **haloed box** the core grown
@@ -115,7 +121,11 @@ impl TileGrid {
 
     /// The tiles whose haloed boxes hold `(x, y)`: its owner and up to 8 neighbours.
     pub fn tiles_of(&self, x: f64, y: f64) -> Vec<usize> {
-        let h = self.halo;
+        self.tiles_within(x, y, self.halo)
+    }
+
+    /// The tiles whose cores come within `h` (scene units, at most the halo) of `(x, y)`.
+    fn tiles_within(&self, x: f64, y: f64, h: f64) -> Vec<usize> {
         let (i0, i1) = (
             self.cell(x - h, self.origin[0], self.nx),
             self.cell(x + h, self.origin[0], self.nx),
@@ -128,7 +138,8 @@ impl TileGrid {
         for j in j0..=j1 {
             for i in i0..=i1 {
                 let t = j * self.nx + i;
-                if self.in_haloed(t, x, y) {
+                let (lo, hi) = self.core(t);
+                if x >= lo[0] - h && x <= hi[0] + h && y >= lo[1] - h && y <= hi[1] + h {
                     out.push(t);
                 }
             }
@@ -136,11 +147,11 @@ impl TileGrid {
         out
     }
 
-    /// Whether `(x, y)` lies within the halo of a seam between two tiles: such a point
-    /// is seen by more than one tile, and the coordinator keeps it for the existence
-    /// re-check of primitives crossing the seam.
+    /// Whether `(x, y)` lies within [`SEAM_BAND_SHARE`] of the halo of a seam between
+    /// two tiles: the coordinator keeps such points for the existence re-check of
+    /// primitives crossing the seam.
     pub fn is_seam(&self, x: f64, y: f64) -> bool {
-        self.tiles_of(x, y).len() > 1
+        self.tiles_within(x, y, SEAM_BAND_SHARE * self.halo).len() > 1
     }
 }
 
@@ -179,7 +190,8 @@ mod tests {
         assert_eq!(g.tiles_of(9.5, 4.0), vec![0, 1]);
         assert_eq!(g.tiles_of(10.5, 4.0), vec![0, 1]);
         assert_eq!(g.tiles_of(5.0, 4.0), vec![0]);
-        assert!(g.is_seam(10.9, 4.0));
+        assert!(g.is_seam(10.2, 4.0));
+        assert!(!g.is_seam(10.9, 4.0));
         assert!(!g.is_seam(15.0, 4.0));
     }
 

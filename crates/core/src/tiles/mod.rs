@@ -21,7 +21,7 @@ mod stream;
 #[cfg(test)]
 mod tests;
 
-pub use grid::{MAX_TILES, TileGrid};
+pub use grid::{MAX_TILES, SEAM_BAND_SHARE, TileGrid};
 pub use merge::{
     DUPLICATE_SHARE, MERGE_ANGLE_DEG, MERGE_RADIUS_RATIO, MergeTolerance, Piece, dedup_on_seams,
     merge_pieces, merge_two,
@@ -29,9 +29,12 @@ pub use merge::{
 pub use stream::{read_tile, survey_bounds};
 
 use nalgebra::Point3;
+use serde_json::{Value, json};
 
 use crate::fit::{FitOptions, FitResult, FitStats, fit};
+use crate::metrics::{Metrics, MetricsOptions, evaluate};
 use crate::progress::Progress;
+use crate::atlas::MeshShape;
 use crate::{Error, PointCloud, Result};
 
 /// A tile's halo as a share of the tile size when none is given: wide enough that a
@@ -71,6 +74,49 @@ pub struct TileFit {
     pub seam: Vec<Point3<f64>>,
     /// Points of the tile's core.
     pub core_points: usize,
+    /// The measures of the tile's core points against the tile's whole model (before
+    /// ownership); `None` with no fit.
+    pub metrics: Option<Metrics>,
+}
+
+impl TileFit {
+    /// The tile as JSON for another process (a Dask worker to the coordinator): `tile`,
+    /// `core_points`, `result` (the tile's `result.json` with its measures, or null) and
+    /// `seam` (`[[x, y, z], …]`, scene units).
+    pub fn to_json(&self) -> Value {
+        let result = match (&self.result, &self.metrics) {
+            (Some(r), Some(m)) => r.to_json(m.to_json()),
+            _ => Value::Null,
+        };
+        let seam: Vec<[f64; 3]> = self.seam.iter().map(|p| [p.x, p.y, p.z]).collect();
+        json!({"tile": self.tile, "core_points": self.core_points, "result": result, "seam": seam})
+    }
+
+    /// Reads back [`TileFit::to_json`]; `load` gives the mesh of a mesh source.
+    pub fn from_json(doc: &Value, load: &dyn Fn(&str) -> Result<MeshShape>) -> Result<TileFit> {
+        let count = |key: &str| {
+            doc.get(key)
+                .and_then(Value::as_u64)
+                .ok_or_else(|| Error::json(key, "a count"))
+        };
+        let (tile, core_points) = (count("tile")? as usize, count("core_points")? as usize);
+        let (result, metrics) = match doc.get("result") {
+            Some(Value::Null) | None => (None, None),
+            Some(r) => {
+                let (r, m) = FitResult::from_json(r, load)?;
+                (Some(r), Some(m))
+            }
+        };
+        let seam: Vec<[f64; 3]> = serde_json::from_value(doc.get("seam").cloned().unwrap_or(Value::Null))
+            .map_err(|e| Error::json("seam", format!("[[x, y, z], …]: {e}")))?;
+        Ok(TileFit {
+            tile,
+            result,
+            seam: seam.into_iter().map(Point3::from).collect(),
+            core_points,
+            metrics,
+        })
+    }
 }
 
 /// A [`Progress`] for the fit of one tile: messages and cancellation go through, stages
@@ -107,23 +153,29 @@ pub fn fit_tile(
         .filter(|p| grid.in_haloed(tile, p.x, p.y))
         .copied()
         .collect();
-    let in_core: Vec<&Point3<f64>> = mine.iter().filter(|p| grid.owner(p.x, p.y) == tile).collect();
-    let seam = in_core
+    let core: Vec<Point3<f64>> = mine
+        .iter()
+        .filter(|p| grid.owner(p.x, p.y) == tile)
+        .copied()
+        .collect();
+    let seam = core
         .iter()
         .filter(|p| grid.is_seam(p.x, p.y))
-        .map(|p| **p)
+        .copied()
         .collect();
-    let core_points = in_core.len();
+    let core_points = core.len();
     if mine.len() < MIN_TILE_POINTS || core_points == 0 {
         return Ok(TileFit {
             tile,
             result: None,
             seam,
             core_points,
+            metrics: None,
         });
     }
     let cloud = PointCloud::from_points(mine);
     let mut result = fit(&cloud, options, &Inner(progress)).map_err(|e| e.in_item("tile", tile))?;
+    let metrics = evaluate(&core, &result.primitives, None, &MetricsOptions::default())?;
     let owned: Vec<bool> = result
         .primitives
         .iter()
@@ -139,6 +191,7 @@ pub fn fit_tile(
         result: Some(result),
         seam,
         core_points,
+        metrics: Some(metrics),
     })
 }
 
@@ -152,9 +205,12 @@ fn owned_only<T>(v: Vec<T>, owned: &[bool]) -> Vec<T> {
 
 /// Joins the fits of the tiles into one result (`merge.rs`): the settings are those of
 /// the tile with the most points, the primitives the merged and de-duplicated pieces.
-/// Errs when no tile had enough points to fit.
-pub fn merge_tiles(tiles: Vec<TileFit>) -> Result<FitResult> {
+/// Also returns the tiles' measures joined ([`joined_metrics`]). Errs when no tile had
+/// enough points to fit.
+pub fn merge_tiles(tiles: Vec<TileFit>) -> Result<(FitResult, Metrics)> {
     let points: usize = tiles.iter().map(|t| t.core_points).sum();
+    let measured: Vec<&Metrics> = tiles.iter().filter_map(|t| t.metrics.as_ref()).collect();
+    let mut metrics = joined_metrics(&measured);
     let mut seam = Vec::new();
     let mut pieces = Vec::new();
     let mut best: Option<FitResult> = None;
@@ -190,7 +246,36 @@ pub fn merge_tiles(tiles: Vec<TileFit>) -> Result<FitResult> {
         passes: 1,
         ..result.stats
     };
-    Ok(result)
+    metrics.points = points;
+    metrics.primitives = result.primitives.len();
+    Ok((result, metrics))
+}
+
+/// The measures of tiles joined without the points: means weighted by each tile's
+/// points, the p95 and maximum the largest of the tiles' (an upper bound), the chamfer
+/// summed. Each tile is measured against its own model, so these describe the tiled fit
+/// as the tiles saw it; a caller holding the whole cloud measures the merged model
+/// instead ([`evaluate`]).
+pub fn joined_metrics(tiles: &[&Metrics]) -> Metrics {
+    let n: usize = tiles.iter().map(|m| m.points).sum();
+    let w = |f: fn(&Metrics) -> f64| {
+        tiles.iter().map(|m| f(m) * m.points as f64).sum::<f64>() / (n.max(1) as f64)
+    };
+    let top = |f: fn(&Metrics) -> f64| tiles.iter().map(|m| f(m)).fold(0.0, f64::max);
+    Metrics {
+        points: n,
+        primitives: tiles.iter().map(|m| m.primitives).sum(),
+        point_to_model_mean: w(|m| m.point_to_model_mean),
+        point_to_model_p95: top(|m| m.point_to_model_p95),
+        point_to_model_max: top(|m| m.point_to_model_max),
+        model_to_point_mean: w(|m| m.model_to_point_mean),
+        coverage: w(|m| m.coverage),
+        coverage_tau: top(|m| m.coverage_tau),
+        chamfer: tiles.iter().map(|m| m.chamfer).sum(),
+        compactness: w(|m| m.compactness),
+        sample_spacing: top(|m| m.sample_spacing),
+        truth: None,
+    }
 }
 
 /// Fits `cloud` tile after tile on a grid of `tile_size` with `halo` (scene units; `None`:
@@ -220,5 +305,5 @@ pub fn fit_tiled(
         progress.advance(1);
     }
     progress.finish();
-    merge_tiles(fits)
+    Ok(merge_tiles(fits)?.0)
 }
