@@ -14,7 +14,7 @@ import pytest
 import primfit
 import primfit.dask
 
-from .conftest import require
+from conftest import require
 
 TILE = 6.0  # metres: the 16 × 8 m floor below is 3 × 2 tiles
 
