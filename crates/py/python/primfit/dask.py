@@ -53,8 +53,11 @@ def _fit_file_tile(path: str, grid: str, tile: int, options: dict[str, Any]) -> 
 
 
 def _fit_array_tile(points: np.ndarray, grid: str, tile: int, options: dict[str, Any]) -> str:
-    """On a worker: tile ``tile`` fitted from ``points`` (its haloed box); the tile's JSON."""
-    return _primfit.fit_tile(points, grid, tile, _fit_options(options))
+    """On a worker: tile ``tile`` fitted from ``points`` (its haloed box); the tile's JSON.
+    An array that arrived by pickle protocol 5 may lie unaligned in its buffer: copied
+    to an aligned one first (the extension reads aligned float64 only)."""
+    aligned = np.require(points, dtype=np.float64, requirements=["C", "A"])
+    return _primfit.fit_tile(aligned, grid, tile, _fit_options(options))
 
 
 def _haloed(points: np.ndarray, grid: dict[str, Any], tile: int) -> np.ndarray:
