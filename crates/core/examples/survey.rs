@@ -10,7 +10,9 @@ use primfit_core::synth::{SurveyKind, SurveyParams, survey};
 fn main() -> Result<(), Box<dyn std::error::Error>> {
     let args: Vec<String> = std::env::args().collect();
     if args.len() < 4 {
-        return Err("usage: survey floor|street POINTS OUT.laz|OUT.ply [EXTENT_X EXTENT_Y CELL]".into());
+        return Err(
+            "usage: survey floor|street POINTS OUT.laz|OUT.ply [EXTENT_X EXTENT_Y CELL]".into(),
+        );
     }
     let kind = match args[1].as_str() {
         "floor" => SurveyKind::Floor,
@@ -33,12 +35,21 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
     }
     let scene = survey(&params)?;
     let out = Path::new(&args[3]);
-    let ext = out.extension().and_then(|e| e.to_str()).unwrap_or("").to_lowercase();
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .unwrap_or("")
+        .to_lowercase();
     if ext == "las" || ext == "laz" {
         write_las(out, &scene.cloud.points, 0.001)?;
     } else {
         io::write_cloud(out, &scene.cloud, Encoding::BinaryLittleEndian)?;
     }
-    println!("{}: {} points, {} true primitives", out.display(), scene.cloud.len(), scene.truth.len());
+    println!(
+        "{}: {} points, {} true primitives",
+        out.display(),
+        scene.cloud.len(),
+        scene.truth.len()
+    );
     Ok(())
 }

@@ -11,7 +11,13 @@ use primfit_core::synth::{SurveyParams, survey};
 use primfit_core::tiles::fit_tiled;
 use primfit_core::{FitOptions, Primitive, Silent, fit};
 
-fn report(name: &str, points: &[primfit_core::na::Point3<f64>], model: &[Primitive], secs: f64, h: f64) {
+fn report(
+    name: &str,
+    points: &[primfit_core::na::Point3<f64>],
+    model: &[Primitive],
+    secs: f64,
+    h: f64,
+) {
     let m = evaluate(points, model, None, &MetricsOptions::default()).expect("metrics");
     let twice = double_cover_share(model, h, h).expect("overlap");
     println!(
@@ -28,9 +34,17 @@ fn main() {
     let points: usize = args.get(1).and_then(|a| a.parse().ok()).unwrap_or(200_000);
     let tile: f64 = args.get(2).and_then(|a| a.parse().ok()).unwrap_or(15.0);
     let halo: Option<f64> = args.get(3).and_then(|a| a.parse().ok());
-    let scene = survey(&SurveyParams { points, ..Default::default() }).expect("scene");
+    let scene = survey(&SurveyParams {
+        points,
+        ..Default::default()
+    })
+    .expect("scene");
     let cloud = scene.cloud;
-    println!("floor: {} points, {} true primitives", cloud.len(), scene.truth.len());
+    println!(
+        "floor: {} points, {} true primitives",
+        cloud.len(),
+        scene.truth.len()
+    );
     let options = FitOptions::default();
     let t = Instant::now();
     let tiled = fit_tiled(&cloud, &options, Some(tile), halo, &Silent).expect("tiled fit");

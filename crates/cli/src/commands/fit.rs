@@ -11,10 +11,10 @@ use primfit_core::fit::{
     DEFAULT_SEED, FitOptions, McmcFitOptions, MethodOptions, fit, parse_types,
 };
 use primfit_core::io::{self, Encoding};
-use primfit_core::tiles::fit_tiled;
 use primfit_core::na::Point3;
 use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
+use primfit_core::tiles::fit_tiled;
 use primfit_core::{Limit, chamfer::PointModel as Model};
 
 use super::sizes::SizeArgs;

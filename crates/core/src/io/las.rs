@@ -116,7 +116,12 @@ pub(crate) fn visit_points(path: &Path, visit: &mut dyn FnMut(&[[f64; 3]])) -> R
             return Err(Error::format(path, msg));
         }
         batch.clear();
-        batch.extend(data.x().zip(data.y()).zip(data.z()).map(|((x, y), z)| [x, y, z]));
+        batch.extend(
+            data.x()
+                .zip(data.y())
+                .zip(data.z())
+                .map(|((x, y), z)| [x, y, z]),
+        );
         visit(&batch);
         seen += got;
     }

@@ -60,5 +60,5 @@ pub use room_presets::{
 pub use room_view::{
     KINECT_DISPARITY_STEP, MIN_SENSOR_DEPTH, RoomParams, RoomScene, RoomView, room,
 };
-pub use survey::{SurveyKind, SurveyParams, SurveyScene, survey};
 pub use six::{SixInARow, SixInARowParams, SixVariant, six_in_a_row};
+pub use survey::{SurveyKind, SurveyParams, SurveyScene, survey};

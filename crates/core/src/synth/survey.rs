@@ -86,7 +86,10 @@ fn rect(corner: Point3<f64>, r: UnitQuaternion<f64>, a: f64, b: f64) -> Result<P
         Point2::new(0.0, b),
     ];
     let shape = PlaneShape::new(outline, Vec::new())?;
-    Ok(Primitive::new(Shape::Plane(shape), Pose::new(r, corner.coords)))
+    Ok(Primitive::new(
+        Shape::Plane(shape),
+        Pose::new(r, corner.coords),
+    ))
 }
 
 /// A vertical wall from `(x0, y0)` along the unit axis `along` (0 = x, 1 = y) over
@@ -116,7 +119,8 @@ fn truth(p: &SurveyParams) -> Result<Vec<Primitive>> {
     let mut out = vec![ground];
     match p.kind {
         SurveyKind::Floor => {
-            let lines = |span: f64| (0..=(span / p.cell).round() as usize).map(|k| k as f64 * p.cell);
+            let lines =
+                |span: f64| (0..=(span / p.cell).round() as usize).map(|k| k as f64 * p.cell);
             for wx in lines(x).filter(|v| *v <= x) {
                 out.push(wall(wx, 0.0, 1, y, FLOOR_HEIGHT)?);
             }
@@ -124,14 +128,22 @@ fn truth(p: &SurveyParams) -> Result<Vec<Primitive>> {
                 out.push(wall(0.0, wy, 0, x, FLOOR_HEIGHT)?);
             }
             let pipe_y = (0.5 * p.cell).min(0.5 * y);
-            out.push(tube(Point3::new(0.0, pipe_y, PIPE_HEIGHT), 0, x, PIPE_RADIUS));
+            out.push(tube(
+                Point3::new(0.0, pipe_y, PIPE_HEIGHT),
+                0,
+                x,
+                PIPE_RADIUS,
+            ));
         }
         SurveyKind::Street => {
             let pitch = p.cell + STREET_WIDTH;
             let (nx, ny) = ((x / pitch).floor() as usize, (y / pitch).floor() as usize);
             for i in 0..nx {
                 for j in 0..ny {
-                    let (x0, y0) = (i as f64 * pitch + 0.5 * STREET_WIDTH, j as f64 * pitch + 0.5 * STREET_WIDTH);
+                    let (x0, y0) = (
+                        i as f64 * pitch + 0.5 * STREET_WIDTH,
+                        j as f64 * pitch + 0.5 * STREET_WIDTH,
+                    );
                     let c = p.cell;
                     out.push(wall(x0, y0, 0, c, FACADE_HEIGHT)?);
                     out.push(wall(x0, y0 + c, 0, c, FACADE_HEIGHT)?);
@@ -225,7 +237,11 @@ mod tests {
             ..Default::default()
         })
         .unwrap();
-        let poles = s.truth.iter().filter(|p| matches!(p.shape, Shape::Cylinder { .. })).count();
+        let poles = s
+            .truth
+            .iter()
+            .filter(|p| matches!(p.shape, Shape::Cylinder { .. }))
+            .count();
         assert_eq!(s.truth.len() - poles, 1 + 4 * 4);
         assert!(poles >= 8);
     }

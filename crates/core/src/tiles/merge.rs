@@ -84,7 +84,8 @@ pub fn merge_pieces(mut pieces: Vec<Piece>, tol: &MergeTolerance) -> Vec<Piece> 
                     let b = pieces.swap_remove(j);
                     let a = &mut pieces[i];
                     let (wa, wb) = (a.primitive.area(), b.primitive.area());
-                    a.existence = (a.existence * wa + b.existence * wb) / (wa + wb).max(f64::MIN_POSITIVE);
+                    a.existence =
+                        (a.existence * wa + b.existence * wb) / (wa + wb).max(f64::MIN_POSITIVE);
                     a.primitive = p;
                     a.tiles.extend(b.tiles);
                     merged_any = true;
@@ -143,7 +144,9 @@ fn merge_planes(
     let ga = to_multi(pa.parts(), |v| *v);
     // b's rings in a's local frame (its z dropped: within the tolerance of a's plane).
     let to_a = |v: &Point2<f64>| {
-        let local = a.pose.to_local(&b.pose.to_scene(&Point3::new(v.x, v.y, 0.0)));
+        let local = a
+            .pose
+            .to_local(&b.pose.to_scene(&Point3::new(v.x, v.y, 0.0)));
         Point2::new(local.x, local.y)
     };
     let gb = to_multi(pb.parts(), to_a);
@@ -189,8 +192,16 @@ fn rings_of(p: &Polygon<f64>) -> Rings {
 }
 
 fn merge_cylinders(a: &Primitive, b: &Primitive, tol: &MergeTolerance) -> Option<Primitive> {
-    let (Shape::Cylinder { length: la, radius: ra }, Shape::Cylinder { length: lb, radius: rb }) =
-        (&a.shape, &b.shape)
+    let (
+        Shape::Cylinder {
+            length: la,
+            radius: ra,
+        },
+        Shape::Cylinder {
+            length: lb,
+            radius: rb,
+        },
+    ) = (&a.shape, &b.shape)
     else {
         return None;
     };
@@ -234,11 +245,18 @@ pub fn dedup_on_seams(
     let mut keep = vec![true; pieces.len()];
     // Smallest first: a small duplicate goes before the large surface it lies on.
     let mut order: Vec<usize> = (0..pieces.len()).collect();
-    order.sort_by(|&i, &j| pieces[i].primitive.area().total_cmp(&pieces[j].primitive.area()));
+    order.sort_by(|&i, &j| {
+        pieces[i]
+            .primitive
+            .area()
+            .total_cmp(&pieces[j].primitive.area())
+    });
     let seam_index = (!seam.is_empty()).then(|| PointIndex::new(seam));
     for &i in &order {
         let pi = &pieces[i].primitive;
-        let spacing = (pi.area() / DUPLICATE_SAMPLES).sqrt().max(tol.distance * 0.5);
+        let spacing = (pi.area() / DUPLICATE_SAMPLES)
+            .sqrt()
+            .max(tol.distance * 0.5);
         let samples = pi.sample_surface(spacing);
         if samples.is_empty() {
             continue;
@@ -254,7 +272,10 @@ pub fn dedup_on_seams(
             .collect();
         let covered = samples
             .iter()
-            .filter(|s| near.iter().any(|&j| pieces[j].primitive.distance(s) <= tol.distance))
+            .filter(|s| {
+                near.iter()
+                    .any(|&j| pieces[j].primitive.distance(s) <= tol.distance)
+            })
             .count();
         if (covered as f64) < DUPLICATE_SHARE * samples.len() as f64 {
             continue;

@@ -31,10 +31,10 @@ pub use stream::{read_tile, survey_bounds};
 use nalgebra::Point3;
 use serde_json::{Value, json};
 
+use crate::atlas::MeshShape;
 use crate::fit::{FitOptions, FitResult, FitStats, fit};
 use crate::metrics::{Metrics, MetricsOptions, evaluate};
 use crate::progress::Progress;
-use crate::atlas::MeshShape;
 use crate::{Error, PointCloud, Result};
 
 /// A tile's halo as a share of the tile size when none is given: wide enough that a
@@ -107,8 +107,9 @@ impl TileFit {
                 (Some(r), Some(m))
             }
         };
-        let seam: Vec<[f64; 3]> = serde_json::from_value(doc.get("seam").cloned().unwrap_or(Value::Null))
-            .map_err(|e| Error::json("seam", format!("[[x, y, z], …]: {e}")))?;
+        let seam: Vec<[f64; 3]> =
+            serde_json::from_value(doc.get("seam").cloned().unwrap_or(Value::Null))
+                .map_err(|e| Error::json("seam", format!("[[x, y, z], …]: {e}")))?;
         Ok(TileFit {
             tile,
             result,
@@ -224,7 +225,10 @@ pub fn merge_tiles(tiles: Vec<TileFit>) -> Result<(FitResult, Metrics)> {
                 tiles: vec![t.tile],
             });
         }
-        if best.as_ref().is_none_or(|b| b.stats.points < r.stats.points) {
+        if best
+            .as_ref()
+            .is_none_or(|b| b.stats.points < r.stats.points)
+        {
             best = Some(r);
         }
     }

@@ -55,17 +55,28 @@ fn pieces(prims: Vec<Primitive>) -> Vec<Piece> {
 #[test]
 fn a_wall_across_three_tiles_is_one_plane() {
     let merged = merge_pieces(
-        pieces(vec![wall(0.0, 12.0, 0.0), wall(8.0, 22.0, 0.0), wall(18.0, 30.0, 0.001)]),
+        pieces(vec![
+            wall(0.0, 12.0, 0.0),
+            wall(8.0, 22.0, 0.0),
+            wall(18.0, 30.0, 0.001),
+        ]),
         &TOL,
     );
     assert_eq!(merged.len(), 1);
-    assert!((merged[0].primitive.area() - 90.0).abs() < 0.5, "{}", merged[0].primitive.area());
+    assert!(
+        (merged[0].primitive.area() - 90.0).abs() < 0.5,
+        "{}",
+        merged[0].primitive.area()
+    );
     assert_eq!(merged[0].tiles.len(), 3);
 }
 
 #[test]
 fn parallel_walls_apart_and_pieces_of_one_tile_stay_apart() {
-    let apart = merge_pieces(pieces(vec![wall(0.0, 12.0, 0.0), wall(8.0, 22.0, 1.0)]), &TOL);
+    let apart = merge_pieces(
+        pieces(vec![wall(0.0, 12.0, 0.0), wall(8.0, 22.0, 1.0)]),
+        &TOL,
+    );
     assert_eq!(apart.len(), 2);
     let mut same_tile = pieces(vec![wall(0.0, 12.0, 0.0), wall(8.0, 22.0, 0.0)]);
     same_tile[1].tiles = vec![0];
@@ -74,7 +85,10 @@ fn parallel_walls_apart_and_pieces_of_one_tile_stay_apart() {
 
 #[test]
 fn a_pipe_across_a_seam_is_one_cylinder() {
-    let merged = merge_pieces(pieces(vec![pipe(0.0, 12.0), pipe(8.0, 22.0), pipe(21.9, 30.0)]), &TOL);
+    let merged = merge_pieces(
+        pieces(vec![pipe(0.0, 12.0), pipe(8.0, 22.0), pipe(21.9, 30.0)]),
+        &TOL,
+    );
     assert_eq!(merged.len(), 1);
     let Shape::Cylinder { length, radius } = merged[0].primitive.shape else {
         panic!("not a cylinder");
@@ -83,10 +97,16 @@ fn a_pipe_across_a_seam_is_one_cylinder() {
     assert!((merged[0].primitive.center().x - 15.0).abs() < 1e-9);
     // A thinner pipe beside it does not join.
     let other = Primitive::new(
-        Shape::Cylinder { length: 10.0, radius: 0.03 },
+        Shape::Cylinder {
+            length: 10.0,
+            radius: 0.03,
+        },
         Pose::new(crate::synth::axis_rotation(0), Vector3::new(15.0, 2.0, 2.6)),
     );
-    assert_eq!(merge_pieces(pieces(vec![pipe(0.0, 12.0), other]), &TOL).len(), 2);
+    assert_eq!(
+        merge_pieces(pieces(vec![pipe(0.0, 12.0), other]), &TOL).len(),
+        2
+    );
 }
 
 #[test]
@@ -118,7 +138,10 @@ fn tiles_of_las_and_laz_files_are_read_in_batches() {
         let grid = TileGrid::new(&lo, &hi, 10.0, 1.0).unwrap();
         for t in 0..grid.len() {
             let got = read_tile(&path, &grid, t).unwrap();
-            let want = points.iter().filter(|p| grid.in_haloed(t, p.x, p.y)).count();
+            let want = points
+                .iter()
+                .filter(|p| grid.in_haloed(t, p.x, p.y))
+                .count();
             assert_eq!(got.len(), want, "{name} tile {t}");
         }
     }
@@ -147,11 +170,20 @@ fn a_tiled_floor_matches_one_fit() {
     let single = crate::fit(&scene.cloud, &options, &Silent).unwrap();
     // 3 × 2 tiles of 15 m: every wall along x, the floor and the pipe cross seams.
     let tiled = fit_tiled(&scene.cloud, &options, Some(15.0), None, &Silent).unwrap();
-    let (a, b) = (single.primitives.len() as f64, tiled.primitives.len() as f64);
-    assert!((a - b).abs() <= (0.02 * a).max(1.0), "single {a}, tiled {b}");
+    let (a, b) = (
+        single.primitives.len() as f64,
+        tiled.primitives.len() as f64,
+    );
+    assert!(
+        (a - b).abs() <= (0.02 * a).max(1.0),
+        "single {a}, tiled {b}"
+    );
     let h = 3.0 * tiled.settings.point_spacing;
     let twice = double_cover_share(&tiled.primitives, h, h).unwrap();
     assert!(twice < 0.01, "covered twice {twice}");
-    let pipes = tiled.primitives.iter().filter(|p| matches!(p.shape, Shape::Cylinder { .. }));
+    let pipes = tiled
+        .primitives
+        .iter()
+        .filter(|p| matches!(p.shape, Shape::Cylinder { .. }));
     assert_eq!(pipes.count(), 1);
 }
