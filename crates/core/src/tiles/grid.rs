@@ -112,11 +112,23 @@ impl TileGrid {
         (lo, [lo[0] + self.tile_size, lo[1] + self.tile_size])
     }
 
-    /// Whether `(x, y)` lies in tile `t`'s haloed box (its core grown by the halo).
+    /// Whether `(x, y)` lies in tile `t`'s haloed box (its core grown by the halo; a
+    /// tile on the grid's border reaches to infinity outwards, so points just outside a
+    /// header's bounds are still read by a tile).
     pub fn in_haloed(&self, t: usize, x: f64, y: f64) -> bool {
+        self.in_grown(t, x, y, self.halo)
+    }
+
+    /// Whether `(x, y)` lies in tile `t`'s core grown by `h` (scene units), border tiles
+    /// unbounded outwards.
+    fn in_grown(&self, t: usize, x: f64, y: f64, h: f64) -> bool {
         let (lo, hi) = self.core(t);
-        let h = self.halo;
-        x >= lo[0] - h && x <= hi[0] + h && y >= lo[1] - h && y <= hi[1] + h
+        let (i, j) = (t % self.nx, t / self.nx);
+        let inside = |v: f64, lo: f64, hi: f64, first: bool, last: bool| {
+            (first || v >= lo - h) && (last || v <= hi + h)
+        };
+        inside(x, lo[0], hi[0], i == 0, i + 1 == self.nx)
+            && inside(y, lo[1], hi[1], j == 0, j + 1 == self.ny)
     }
 
     /// The tiles whose haloed boxes hold `(x, y)`: its owner and up to 8 neighbours.
@@ -138,8 +150,7 @@ impl TileGrid {
         for j in j0..=j1 {
             for i in i0..=i1 {
                 let t = j * self.nx + i;
-                let (lo, hi) = self.core(t);
-                if x >= lo[0] - h && x <= hi[0] + h && y >= lo[1] - h && y <= hi[1] + h {
+                if self.in_grown(t, x, y, h) {
                     out.push(t);
                 }
             }
@@ -182,6 +193,8 @@ mod tests {
         }
         assert_eq!(g.owner(-5.0, -5.0), 0);
         assert_eq!(g.owner(100.0, 100.0), 2);
+        assert!(g.in_haloed(2, 100.0, 100.0) && g.in_haloed(0, -5.0, 4.0));
+        assert!(!g.in_haloed(0, 12.0, 4.0));
     }
 
     #[test]

@@ -61,12 +61,22 @@ def _fit_array_tile(points: np.ndarray, grid: str, tile: int, options: dict[str,
 
 
 def _haloed(points: np.ndarray, grid: dict[str, Any], tile: int) -> np.ndarray:
-    """The points of ``tile``'s haloed box (as the Rust ``TileGrid::in_haloed``)."""
-    nx, size, halo = grid["nx"], grid["tile_size"], grid["halo"]
-    x0 = grid["origin"][0] + (tile % nx) * size
-    y0 = grid["origin"][1] + (tile // nx) * size
+    """The points of ``tile``'s haloed box (as the Rust ``TileGrid::in_haloed``: border
+    tiles reach to infinity outwards)."""
+    nx, ny, size, halo = grid["nx"], grid["ny"], grid["tile_size"], grid["halo"]
+    i, j = tile % nx, tile // nx
+    x0 = grid["origin"][0] + i * size
+    y0 = grid["origin"][1] + j * size
     x, y = points[:, 0], points[:, 1]
-    keep = (x >= x0 - halo) & (x <= x0 + size + halo) & (y >= y0 - halo) & (y <= y0 + size + halo)
+    keep = np.ones(len(points), dtype=bool)
+    if i > 0:
+        keep &= x >= x0 - halo
+    if i + 1 < nx:
+        keep &= x <= x0 + size + halo
+    if j > 0:
+        keep &= y >= y0 - halo
+    if j + 1 < ny:
+        keep &= y <= y0 + size + halo
     return np.ascontiguousarray(points[keep])
 
 
