@@ -30,7 +30,7 @@ def main() -> None:
     p.add_argument("--tile-size", type=float)
     a = p.parse_args()
     with distributed.LocalCluster(
-        n_workers=a.workers, threads_per_worker=1, memory_limit=a.memory_limit, dashboard_address=None
+        n_workers=a.workers, threads_per_worker=1, memory_limit=a.memory_limit, dashboard_address=":0"
     ) as cluster, distributed.Client(cluster) as client:
         grid, points = primfit._primfit.tile_grid_file(a.survey, a.tile_size, None)
         g = json.loads(grid)

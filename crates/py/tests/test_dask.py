@@ -45,7 +45,7 @@ def _floor(n: int = 24_000, seed: int = 3) -> np.ndarray:
 def client() -> Iterator[Any]:
     distributed = require("distributed")
     with distributed.LocalCluster(
-        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=None
+        n_workers=2, threads_per_worker=1, processes=False, dashboard_address=":0"
     ) as cluster, distributed.Client(cluster) as c:
         yield c
 

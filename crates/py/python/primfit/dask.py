@@ -120,7 +120,7 @@ def fit_tiled(
     own = client is None
     if own:
         cluster = distributed.LocalCluster(
-            n_workers=os.cpu_count() or 1, threads_per_worker=1, dashboard_address=None
+            n_workers=os.cpu_count() or 1, threads_per_worker=1, dashboard_address=":0"
         )
         client = distributed.Client(cluster)
     try:
@@ -179,7 +179,7 @@ def main(argv: Sequence[str] | None = None) -> int:
             n_workers=a.workers or os.cpu_count() or 1,
             threads_per_worker=1,
             memory_limit=a.memory_limit or "auto",
-            dashboard_address=None,
+            dashboard_address=":0",
         )
         client = distributed.Client(cluster)
     else:
