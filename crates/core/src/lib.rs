@@ -151,6 +151,7 @@ pub mod solve;
 mod spatial;
 mod surface;
 pub mod synth;
+pub mod tiles;
 mod timing;
 
 pub use atlas::{MeshShape, Shape, ShapeKind, TriMesh};

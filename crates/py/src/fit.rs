@@ -29,7 +29,7 @@ use crate::synth::points_array;
 /// Options of a fit: every flag of `primfit fit`, under the same names (`None` = the
 /// library's default, [`FitOptions::default`], or a value derived from the cloud).
 #[pyclass(module = "primfit._primfit", name = "FitOptions", frozen)]
-pub struct PyFitOptions(FitOptions);
+pub struct PyFitOptions(pub(crate) FitOptions);
 
 /// The options of `--method mcmc`, as given (`None` = the library's default).
 struct McmcArgs {

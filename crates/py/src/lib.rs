@@ -13,6 +13,7 @@ mod io;
 mod pool;
 mod render;
 mod synth;
+mod tiles;
 
 use pyo3::prelude::*;
 
@@ -32,6 +33,9 @@ mod _primfit {
         synth_hallway, synth_nine_cylinders, synth_partial_view, synth_pipe, synth_registration,
         synth_six_in_a_row,
     };
+
+    #[pymodule_export]
+    use super::tiles::{fit_tile, merge_tiles, tile_grid_array, tile_grid_file, tile_points};
 
     /// The library version.
     #[allow(non_upper_case_globals)]

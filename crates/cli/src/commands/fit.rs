@@ -15,9 +15,11 @@ use primfit_core::metrics::evaluate_indexed;
 use primfit_core::na::Point3;
 use primfit_core::refine::RefineOptions;
 use primfit_core::solve::{Parameterization, SolverOptions};
+use primfit_core::tiles::fit_tiled;
 use primfit_core::{Limit, MetricsOptions, PointIndex, Stopwatch, chamfer::PointModel as Model};
 
 use super::sizes::SizeArgs;
+use super::tiles::{TileArgs, hand_off};
 use super::{Output, check_output, parse_limit, parse_pair, parse_point, read_scene};
 use crate::progress::Bars;
 
@@ -149,6 +151,9 @@ pub struct FitArgs {
     /// measures, output) as JSON here.
     #[arg(long, value_name = "timings.json")]
     pub timings: Option<PathBuf>,
+    /// Tiled fitting of large surveys.
+    #[command(flatten)]
+    pub tiling: TileArgs,
 }
 
 impl FitArgs {
@@ -267,6 +272,10 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
         }
     }
     let options = args.options()?;
+    if let Some(address) = &args.tiling.scheduler {
+        let (o, m) = (args.output.as_deref(), args.mesh.as_deref());
+        return hand_off(&args.tiling, address, &args.scene, o, m, out.quiet);
+    }
     let cloud = read_scene(&args.scene, out)?;
     clock.lap("read");
     if args.method == "mcmc" && cloud.sensors.is_none() {
@@ -280,8 +289,13 @@ pub fn run(args: FitArgs, out: &Output) -> Result<()> {
     // One kd-tree for the fit and the measures.
     let index = PointIndex::new(&cloud.points);
     clock.lap("index");
-    let result = fit_indexed(&cloud, &index, &options, &bars)
-        .with_context(|| format!("fitting {}", args.scene.display()))?;
+    let t = &args.tiling;
+    let result = if t.tiles {
+        fit_tiled(&cloud, &options, t.tile_size, t.halo, &bars)
+    } else {
+        fit_indexed(&cloud, &index, &options, &bars)
+    }
+    .with_context(|| format!("fitting {}", args.scene.display()))?;
     clock.lap("fit");
     clock.nest("fit", &result.stats.stages);
     let metrics = evaluate_indexed(

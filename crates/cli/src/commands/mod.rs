@@ -12,6 +12,7 @@ pub mod register;
 pub mod render;
 pub mod sizes;
 pub mod synth;
+pub mod tiles;
 pub mod view;
 
 /// How much to print.

@@ -522,17 +522,6 @@ fn triangulate(outline: &[Point2<f64>], holes: &[Vec<Point2<f64>>]) -> TriMesh {
     TriMesh { vertices, faces }
 }
 
-/// The closest point of segment `ab` to `q`.
-fn closest_on_segment(q: &Point2<f64>, a: &Point2<f64>, b: &Point2<f64>) -> Point2<f64> {
-    let ab = b - a;
-    let len2 = ab.norm_squared();
-    if len2 == 0.0 {
-        return *a;
-    }
-    let t = ((q - a).dot(&ab) / len2).clamp(0.0, 1.0);
-    a + ab * t
-}
-
 /// The first `t ≥ 0` at which the 2-D ray `o + t·d` touches segment `ab`.
 fn ray_segment(
     o: &Point2<f64>,

@@ -16,6 +16,7 @@ mod geometry;
 mod mdl;
 mod model;
 
+pub(crate) use mdl::primitive_cost;
 pub use model::{
     CAP_SIGMAS, CAP_SPACINGS, CompactModel, CompactOptions, EXISTENCE_BETA, MAX_CANDIDATE_SAMPLES,
     PRIMITIVE_TERM_SAMPLES, SAMPLE_SPACINGS, compact_model,

@@ -24,6 +24,8 @@ use las::{PointDataBuilder, Reader};
 
 use super::collect::Collector;
 use super::{CloudFormat, ReadReport};
+use nalgebra::Point3;
+
 use crate::{Error, PointCloud, Result};
 
 /// Points read at a time.
@@ -93,6 +95,94 @@ pub(crate) fn read_cloud_report(path: &Path) -> Result<(PointCloud, ReadReport)>
         compressed: raw.compressed,
     };
     Ok(out.finish(format, Vec::new(), Vec::new()))
+}
+
+/// Visits the points of a LAS/LAZ file in batches of [`BATCH`] (world coordinates, scene
+/// units), holding one batch at a time: the memory used does not grow with the file.
+/// Checks the file as [`read_cloud_report`] does. Returns the number of points read.
+pub(crate) fn visit_points(path: &Path, visit: &mut dyn FnMut(&[[f64; 3]])) -> Result<u64> {
+    let mut reader = open_checked(path)?;
+    let header = reader.header().clone();
+    let declared = header.number_of_points();
+    let mut data = PointDataBuilder::new().for_header(&header).build();
+    let mut batch = Vec::with_capacity(BATCH as usize);
+    let mut seen = 0u64;
+    while seen < declared {
+        let got = reader
+            .fill_points(BATCH, &mut data)
+            .map_err(|e| las_error(path, &e))?;
+        if got == 0 {
+            let msg = format!("truncated point data: {seen} of {declared} points");
+            return Err(Error::format(path, msg));
+        }
+        batch.clear();
+        batch.extend(
+            data.x()
+                .zip(data.y())
+                .zip(data.z())
+                .map(|((x, y), z)| [x, y, z]),
+        );
+        visit(&batch);
+        seen += got;
+    }
+    Ok(seen)
+}
+
+/// The xyz bounds a LAS/LAZ file's header declares (world coordinates, scene units) and
+/// its point count, without reading the points.
+pub(crate) fn header_bounds(path: &Path) -> Result<([f64; 3], [f64; 3], u64)> {
+    let reader = open_checked(path)?;
+    let header = reader.header();
+    let b = header.bounds();
+    Ok((
+        [b.min.x, b.min.y, b.min.z],
+        [b.max.x, b.max.y, b.max.z],
+        header.number_of_points(),
+    ))
+}
+
+/// A `las` reader over a regular file whose raw header passed [`precheck`].
+fn open_checked(path: &Path) -> Result<Reader> {
+    let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+    let meta = file.metadata().map_err(|e| Error::io(path, e))?;
+    if !meta.is_file() {
+        return Err(Error::format(
+            path,
+            "LAS/LAZ is read from regular files only (not a pipe or device)",
+        ));
+    }
+    precheck(&mut file, meta.len(), path)?;
+    file.seek(SeekFrom::Start(0))
+        .map_err(|e| Error::io(path, e))?;
+    Reader::new(BufReader::with_capacity(1 << 16, file)).map_err(|e| las_error(path, &e))
+}
+
+/// Writes `points` (scene units) as LAS 1.2 point format 0, compressed (LAZ) when the
+/// extension is `.laz`, coordinates stored at `scale` (scene units per integer step)
+/// from an offset at the points' minimum corner. Written in place (callers stage it).
+pub fn write_las(path: &Path, points: &[Point3<f64>], scale: f64) -> Result<()> {
+    crate::check::positive("scale", scale)?;
+    let (lo, _) = crate::bounds_of(points).ok_or(Error::EmptyCloud)?;
+    let mut builder = las::Builder::from((1, 2));
+    builder.point_format = las::point::Format::new(0).map_err(|e| las_error(path, &e))?;
+    let transform = |offset: f64| las::Transform { scale, offset };
+    builder.transforms = las::Vector {
+        x: transform(lo.x.floor()),
+        y: transform(lo.y.floor()),
+        z: transform(lo.z.floor()),
+    };
+    let header = builder.into_header().map_err(|e| las_error(path, &e))?;
+    let mut writer = las::Writer::from_path(path, header).map_err(|e| las_error(path, &e))?;
+    for p in points {
+        let point = las::Point {
+            x: p.x,
+            y: p.y,
+            z: p.z,
+            ..Default::default()
+        };
+        writer.write_point(point).map_err(|e| las_error(path, &e))?;
+    }
+    writer.close().map_err(|e| las_error(path, &e))
 }
 
 /// LAS colours (16 bits) as 8-bit ones: the high byte, or the value itself when every

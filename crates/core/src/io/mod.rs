@@ -85,6 +85,7 @@ mod export;
 mod guard;
 pub(crate) mod json;
 mod las;
+pub use las::write_las;
 mod palette;
 mod pcd;
 mod ply;
@@ -249,4 +250,21 @@ pub struct MeshReport {
     pub skipped_degenerate: usize,
     /// Elements other than `vertex` and `face` that were read past.
     pub ignored_elements: Vec<String>,
+}
+
+/// Whether `path` is a LAS or LAZ file (by extension, checked by its first bytes), which
+/// [`crate::tiles`] reads in batches; errs as [`read_cloud`] does on an unknown format.
+pub(crate) fn is_las(path: &Path) -> Result<bool> {
+    Ok(matches!(detect::detect(path)?, detect::Kind::Las))
+}
+
+/// The points of the LAS/LAZ file `path` in batches (see `las::visit_points`), a panic of
+/// the decoder turned into an error as for [`read_cloud`].
+pub(crate) fn visit_las_points(path: &Path, visit: &mut dyn FnMut(&[[f64; 3]])) -> Result<u64> {
+    guard::decoder(path, "LAS/LAZ", || las::visit_points(path, visit))
+}
+
+/// The header bounds and point count of the LAS/LAZ file `path` (see `las::header_bounds`).
+pub(crate) fn las_header_bounds(path: &Path) -> Result<([f64; 3], [f64; 3], u64)> {
+    guard::decoder(path, "LAS/LAZ", || las::header_bounds(path))
 }

@@ -40,6 +40,7 @@ mod room;
 mod room_presets;
 mod room_view;
 mod six;
+mod survey;
 
 pub use common::{
     Density, LatticeHint, Misalignment, Noise, Scene, axis_rotation, elbow_rotation,
@@ -60,3 +61,4 @@ pub use room_view::{
     KINECT_DISPARITY_STEP, MIN_SENSOR_DEPTH, RoomParams, RoomScene, RoomView, room,
 };
 pub use six::{SixInARow, SixInARowParams, SixVariant, six_in_a_row};
+pub use survey::{SurveyKind, SurveyParams, SurveyScene, survey};

@@ -19,6 +19,8 @@ __all__ = [
     "chamfer_problems",
     "fit",
     "fit_problem",
+    "fit_tile",
+    "merge_tiles",
     "primitives_mesh",
     "read_mesh",
     "read_ply",
@@ -30,6 +32,9 @@ __all__ = [
     "synth_partial_view",
     "synth_registration",
     "synth_six_in_a_row",
+    "tile_grid_array",
+    "tile_grid_file",
+    "tile_points",
     "write_mesh",
     "write_ply",
 ]
@@ -131,6 +136,13 @@ def fit(
 def read_result(text: str) -> _F64: ...
 def candidates(cloud: _F64, options: FitOptions) -> tuple[str, _F64, _I64, str]: ...
 def fit_problem(cloud: _F64, options: FitOptions) -> ChamferProblem: ...
+def tile_grid_file(
+    path: str | os.PathLike[str], tile_size: float | None = None, halo: float | None = None
+) -> tuple[str, int]: ...
+def tile_grid_array(cloud: _F64, tile_size: float | None = None, halo: float | None = None) -> str: ...
+def tile_points(path: str | os.PathLike[str], grid: str, tile: int) -> _F64: ...
+def fit_tile(points: _F64, grid: str, tile: int, options: FitOptions) -> str: ...
+def merge_tiles(tiles_json: Sequence[str]) -> tuple[str, _F64]: ...
 
 _Scene = tuple[_F64, str]
 
