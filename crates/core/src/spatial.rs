@@ -117,20 +117,31 @@ impl PointIndex {
         if points.len() < 2 {
             return None;
         }
-        let stride = (points.len() / max_probe.max(1)).max(1);
-        let mut d: Vec<f64> = points
-            .iter()
-            .step_by(stride)
-            .filter_map(|p| self.nearest_n(p, 2).get(1).map(|r| r.1.sqrt()))
-            .filter(|d| *d > 0.0)
-            .collect();
-        if d.is_empty() {
-            return None;
-        }
-        let mid = d.len() / 2;
-        d.select_nth_unstable_by(mid, f64::total_cmp);
-        Some(d[mid])
+        strided_median(points.len(), max_probe, |i| {
+            self.nearest_n(&points[i], 2).get(1).map(|r| r.1.sqrt())
+        })
     }
+}
+
+/// The median of the positive values of `distance(i)` over up to `max_probe` evenly
+/// strided `i` in `0..n` (`None` where it has none): the probe of a median spacing.
+pub(crate) fn strided_median(
+    n: usize,
+    max_probe: usize,
+    distance: impl Fn(usize) -> Option<f64>,
+) -> Option<f64> {
+    let stride = (n / max_probe.max(1)).max(1);
+    let mut d: Vec<f64> = (0..n)
+        .step_by(stride)
+        .filter_map(distance)
+        .filter(|d| *d > 0.0)
+        .collect();
+    if d.is_empty() {
+        return None;
+    }
+    let mid = d.len() / 2;
+    d.select_nth_unstable_by(mid, f64::total_cmp);
+    Some(d[mid])
 }
 
 /// A static KD-tree over 2-D points (kiddo's `ImmutableKdTree<f64, 2>`), tolerant of

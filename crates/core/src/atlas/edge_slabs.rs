@@ -69,7 +69,6 @@ impl EdgeSlabs {
     fn slab(&self, s: usize) -> &[u32] {
         &self.ids[self.starts[s] as usize..self.starts[s + 1] as usize]
     }
-
 }
 
 #[cfg(test)]

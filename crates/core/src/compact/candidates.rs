@@ -8,7 +8,7 @@ use rayon::prelude::*;
 
 use crate::atlas::{PlaneShape, plane_frame};
 use crate::detect::{Detection, Segment, SurfaceModel};
-use crate::spatial::PointIndex;
+use crate::spatial::{PointIndex, strided_median};
 use crate::{Primitive, Shape};
 
 /// Outline cells per point spacing: the occupancy grid of a plane's outline has cells of
@@ -90,19 +90,9 @@ fn own_spacing(points: &[Point3<f64>], index: &PointIndex, members: &[usize]) ->
     if members.len() < 2 {
         return None;
     }
-    let stride = (members.len() / SPACING_PROBES).max(1);
-    let mut d: Vec<f64> = members
-        .iter()
-        .step_by(stride)
-        .filter_map(|&i| second_member(points, index, members, &points[i]))
-        .filter(|d| *d > 0.0)
-        .collect();
-    if d.is_empty() {
-        return None;
-    }
-    let mid = d.len() / 2;
-    d.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(d[mid])
+    strided_median(members.len(), SPACING_PROBES, |k| {
+        second_member(points, index, members, &points[members[k]])
+    })
 }
 
 /// The distance from `q` (a member) to the second nearest member, the first being `q`

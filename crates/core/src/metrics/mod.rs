@@ -435,9 +435,6 @@ pub fn evaluate(
     truth: Option<&[Primitive]>,
     options: &MetricsOptions,
 ) -> Result<Metrics> {
-    if cloud.is_empty() {
-        return Err(Error::EmptyCloud);
-    }
     evaluate_indexed(cloud, &PointIndex::new(cloud), model, truth, options)
 }
 
