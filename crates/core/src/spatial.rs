@@ -10,6 +10,7 @@ use std::num::NonZeroUsize;
 
 use kiddo::{ImmutableKdTree, SquaredEuclidean};
 use nalgebra::Point3;
+use rayon::prelude::*;
 
 use crate::{Error, Primitive, Result};
 
@@ -128,10 +129,12 @@ impl PointIndex {
 pub(crate) fn strided_median(
     n: usize,
     max_probe: usize,
-    distance: impl Fn(usize) -> Option<f64>,
+    distance: impl Fn(usize) -> Option<f64> + Sync + Send,
 ) -> Option<f64> {
     let stride = (n / max_probe.max(1)).max(1);
+    // In parallel; the median of the collected values does not depend on their order.
     let mut d: Vec<f64> = (0..n)
+        .into_par_iter()
         .step_by(stride)
         .filter_map(distance)
         .filter(|d| *d > 0.0)

@@ -40,6 +40,26 @@ def test_chamfer_problem_over_the_memory_budget_raises_before_allocating():
         primfit.ChamferProblem(cloud, samples, owner, beta="inf")
 
 
+def _misaligned(a: np.ndarray) -> np.ndarray:
+    """A copy of ``a`` whose data starts one byte into a buffer: C-ordered, not aligned."""
+    buf = np.zeros(a.nbytes + 1, dtype=np.uint8)
+    out = np.frombuffer(buf.data, dtype=a.dtype, count=a.size, offset=1).reshape(a.shape)
+    out[...] = a
+    return out
+
+
+def test_misaligned_arrays_are_read_like_aligned_ones():
+    rng = np.random.default_rng(0)
+    cloud, samples = rng.random((50, 3)), rng.random((20, 3))
+    owner, p = np.arange(20) % 4, np.full(4, 0.5)
+    odd = [_misaligned(x) for x in (cloud, samples, owner, p)]
+    assert not any(x.flags.aligned for x in odd)
+    want = primfit.probabilistic_chamfer(cloud, samples, owner, p, cap=0.25)
+    got = primfit.probabilistic_chamfer(*odd, cap=0.25)
+    assert got[:2] == want[:2]
+    np.testing.assert_array_equal(got[2], want[2])
+
+
 def test_synthetic_scenes_refuse_more_points_than_memory_holds():
     with pytest.raises(ValueError, match="inliers"):
         primfit.synth.registration(inliers=10**12)

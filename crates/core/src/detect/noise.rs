@@ -125,8 +125,10 @@ impl NoiseMap {
         for &i in &usable {
             members.entry(map.cell(&points[i])).or_default().push(i);
         }
+        // Each cell's σ is its own: computed in parallel, the same map on any thread count.
+        let members: Vec<([i64; 3], Vec<usize>)> = members.into_iter().collect();
         map.cells = members
-            .into_iter()
+            .into_par_iter()
             .filter(|(_, ids)| ids.len() >= MIN_CELL_SAMPLES)
             .map(|(key, ids)| {
                 let planes: Vec<LocalPlane> = ids.into_iter().map(plane).collect();
