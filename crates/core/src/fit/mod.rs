@@ -9,7 +9,7 @@
 //! | resolve | [`settings`](Settings::resolve) | [`FitOptions`] → [`Settings`] (every value used; the defaults that depend on the cloud) |
 //! | pass | `pass.rs` | lattice candidates near the data → memory and work checks ([`estimate_bytes`], [`estimate_work`]) → coefficients (+ the free-space cost, [`crate::ray::FreeSpace`], when [`Settings::free_space`]) → L-BFGS and polish → optional refinement |
 //! | gaps | `gaps.rs` | coarse to fine: a finer lattice where the refined pass leaves points unexplained |
-//! | re-aligned pass | `mod.rs` | with an estimated frame and refinement: the lattice re-aligned to the first pass's primitives, then pass and gaps again |
+//! | re-aligned pass | `mod.rs` | with an estimated frame and refinement: the lattice re-aligned to the first pass's primitives, then pass and gaps again; skipped when the re-aligned lattice moves no candidate by [`REALIGN_MIN_SAMPLE_SHIFT`] sample spacings |
 //! | pick | `mod.rs` | of the two passes, the one with the lower [`binary_chamfer`] |
 //!
 //! What comes out is a [`FitResult`] (`result.rs`: stats, `result.json`, mesh; the JSON
