@@ -82,14 +82,14 @@ def run_fit(primfit, scan, flags, threads, out_dir, tag):
     timings = os.path.join(out_dir, f"{tag}.timings.json")
     cmd = [primfit, "-q"] + (["-j", str(threads)] if threads else []) + \
         ["fit", scan, "-o", result, "--timings", timings] + flags
-    start = time.perf_counter()
-    proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=subprocess.PIPE)
-    _, status, usage = os.wait4(proc.pid, 0)
-    wall = time.perf_counter() - start
-    err = proc.stderr.read().decode()
-    proc.stderr.close()
+    log = os.path.join(out_dir, f"{tag}.stderr")
+    with open(log, "w") as stderr:
+        start = time.perf_counter()
+        proc = subprocess.Popen(cmd, stdout=subprocess.DEVNULL, stderr=stderr)
+        _, status, usage = os.wait4(proc.pid, 0)  # the child's own rusage: its peak RSS
+        wall = time.perf_counter() - start
     if status != 0:
-        sys.exit(f"failed: {' '.join(cmd)}\n{err}")
+        sys.exit(f"failed: {' '.join(cmd)}\n{open(log).read()}")
     doc = json.load(open(result))
     stages = json.load(open(timings))["stages"]
     return {"wall": wall, "cpu": usage.ru_utime + usage.ru_stime, "rss": usage.ru_maxrss * 1024,
