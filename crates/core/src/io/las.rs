@@ -47,15 +47,8 @@ struct RawInfo {
 
 /// Reads a LAS or LAZ file as a point cloud (see the module docs).
 pub(crate) fn read_cloud_report(path: &Path) -> Result<(PointCloud, ReadReport)> {
-    let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
-    let meta = file.metadata().map_err(|e| Error::io(path, e))?;
-    if !meta.is_file() {
-        return Err(Error::format(
-            path,
-            "LAS/LAZ is read from regular files only (not a pipe or device)",
-        ));
-    }
-    let raw = precheck(&mut file, meta.len(), path)?;
+    let (mut file, len) = open_regular(path)?;
+    let raw = precheck(&mut file, len, path)?;
     file.seek(SeekFrom::Start(0))
         .map_err(|e| Error::io(path, e))?;
     let mut reader =
@@ -141,9 +134,10 @@ pub(crate) fn header_bounds(path: &Path) -> Result<([f64; 3], [f64; 3], u64)> {
     ))
 }
 
-/// A `las` reader over a regular file whose raw header passed [`precheck`].
-fn open_checked(path: &Path) -> Result<Reader> {
-    let mut file = File::open(path).map_err(|e| Error::io(path, e))?;
+/// `path` opened, with its length in bytes, when it is a regular file (a LAS/LAZ reader
+/// seeks, so a pipe or a device is refused).
+fn open_regular(path: &Path) -> Result<(File, u64)> {
+    let file = File::open(path).map_err(|e| Error::io(path, e))?;
     let meta = file.metadata().map_err(|e| Error::io(path, e))?;
     if !meta.is_file() {
         return Err(Error::format(
@@ -151,7 +145,13 @@ fn open_checked(path: &Path) -> Result<Reader> {
             "LAS/LAZ is read from regular files only (not a pipe or device)",
         ));
     }
-    precheck(&mut file, meta.len(), path)?;
+    Ok((file, meta.len()))
+}
+
+/// A `las` reader over a regular file whose raw header passed [`precheck`].
+fn open_checked(path: &Path) -> Result<Reader> {
+    let (mut file, len) = open_regular(path)?;
+    precheck(&mut file, len, path)?;
     file.seek(SeekFrom::Start(0))
         .map_err(|e| Error::io(path, e))?;
     Reader::new(BufReader::with_capacity(1 << 16, file)).map_err(|e| las_error(path, &e))
