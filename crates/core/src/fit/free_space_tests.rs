@@ -9,12 +9,12 @@ use rand_chacha::ChaCha8Rng;
 use super::pass::charge_free_space;
 use super::*;
 use crate::chamfer::{ChamferOptions, Coefficients, Evaluator};
-use crate::lattice::{CandidateSet, LatticeSpec};
+use crate::lattice::CandidateSet;
 use crate::metrics::{MetricsOptions, evaluate, point_to_model_distances};
 use crate::progress::Silent;
 use crate::ray::{FreeSpace, Rays};
 use crate::synth::ray_scene;
-use crate::{Primitive, Shape, ShapeKind};
+use crate::{Primitive, ShapeKind};
 
 /// The thesis's lattice on the scene axes: 1 m squares, 0.5 m step.
 fn lattice(free_space: Option<bool>) -> FitOptions {
@@ -44,14 +44,7 @@ fn measures(points: &[Point3<f64>], model: &[Primitive]) -> (f64, f64) {
 #[test]
 fn loss_with_free_space_has_the_exact_gradient_and_adds_the_closed_form() {
     let scene = ray_scene("corridor", 16, 12, 3).unwrap();
-    let spec = LatticeSpec {
-        shapes: vec![Shape::Square { side: 1.0 }],
-        spacing: 0.5,
-        origin: Point3::origin(),
-        frame: nalgebra::UnitQuaternion::identity(),
-        sample_spacing: 0.1,
-    };
-    let set = CandidateSet::build(&spec, &scene.cloud).unwrap();
+    let set = CandidateSet::unit_squares(&scene.cloud);
     let chamfer = ChamferOptions {
         cap: 0.25,
         beta: Some(8),

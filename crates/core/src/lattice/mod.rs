@@ -20,6 +20,22 @@ mod template;
 #[cfg(test)]
 mod tests;
 
+#[cfg(test)]
+impl CandidateSet {
+    /// Tests' lattice: 1 m squares on a 0.5 m axis-aligned grid through the origin,
+    /// samples 0.1 m apart, near the points of `cloud`.
+    pub(crate) fn unit_squares(cloud: &PointCloud) -> CandidateSet {
+        let spec = LatticeSpec {
+            shapes: vec![Shape::Square { side: 1.0 }],
+            spacing: 0.5,
+            origin: Point3::origin(),
+            frame: UnitQuaternion::identity(),
+            sample_spacing: 0.1,
+        };
+        CandidateSet::build(&spec, cloud).expect("a valid lattice near the cloud")
+    }
+}
+
 pub use orientation::orientations;
 pub use template::Template;
 

@@ -1,12 +1,12 @@
 //! Tests of the free-space cost: the closed form against brute-force ray marching, and
 //! its independence from the thread count.
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::Vector3;
 use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 use super::{FreeSpace, Rays, marched_free_space};
-use crate::lattice::{CandidateSet, LatticeSpec};
+use crate::lattice::CandidateSet;
 use crate::synth::{axis_rotation, ray_scene};
 use crate::{Pose, Primitive, Shape};
 
@@ -14,14 +14,7 @@ use crate::{Pose, Primitive, Shape};
 /// squares near its points (every third), a square floating in the open, a cylinder.
 fn small_scene() -> (Rays, Vec<Primitive>) {
     let scene = ray_scene("object", 12, 9, 5).unwrap();
-    let spec = LatticeSpec {
-        shapes: vec![Shape::Square { side: 1.0 }],
-        spacing: 0.5,
-        origin: Point3::origin(),
-        frame: nalgebra::UnitQuaternion::identity(),
-        sample_spacing: 0.1,
-    };
-    let set = CandidateSet::build(&spec, &scene.cloud).unwrap();
+    let set = CandidateSet::unit_squares(&scene.cloud);
     let mut candidates: Vec<Primitive> = (0..set.len())
         .step_by(3)
         .map(|i| set.primitive(i))

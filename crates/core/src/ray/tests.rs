@@ -6,7 +6,7 @@ use rand_chacha::ChaCha8Rng;
 
 use super::*;
 use crate::atlas::Shape;
-use crate::lattice::{CandidateSet, LatticeSpec};
+use crate::lattice::CandidateSet;
 use crate::progress::Silent;
 use crate::synth::{
     SensorParams, SixInARowParams, SixVariant, axis_rotation, depth_sensor, look_at, six_in_a_row,
@@ -180,14 +180,7 @@ pub(crate) fn room() -> (PointCloud, Vec<Primitive>, Vec<Primitive>) {
         },
     )
     .unwrap();
-    let spec = LatticeSpec {
-        shapes: vec![Shape::Square { side: 1.0 }],
-        spacing: 0.5,
-        origin: Point3::origin(),
-        frame: nalgebra::UnitQuaternion::identity(),
-        sample_spacing: 0.1,
-    };
-    let set = CandidateSet::build(&spec, &cloud).unwrap();
+    let set = CandidateSet::unit_squares(&cloud);
     let candidates = (0..set.len()).map(|i| set.primitive(i)).collect();
     (cloud, truth, candidates)
 }
