@@ -10,7 +10,9 @@ use primfit_core::chamfer::{
     ChamferOptions, Coefficients, Evaluator, PointModel, SampleSets, check_memory,
 };
 use primfit_core::na::Point3;
+use primfit_core::solve::{SolverOptions, solve_from};
 use pyo3::prelude::*;
+use pyo3::types::PyDict;
 use rayon::prelude::*;
 
 use crate::convert::{self, ToPyResult};
@@ -217,6 +219,39 @@ impl ChamferProblem {
         })?;
         let grads = Array2::from_shape_vec((b, n), grads).expect("b · n gradient cells");
         Ok((totals.into_pyarray(py), grads.into_pyarray(py)))
+    }
+
+    /// Minimises the loss over existence from `start` (N,) with the fit's solver
+    /// (projected L-BFGS, threshold, polish; defaults of `primfit fit`): a dict of
+    /// `probability` (N,), `exists` (N,), `iterations`, `evaluations`, `stop`, `history`
+    /// (the loss after every iteration) and `binary` (the final scene's loss).
+    #[pyo3(signature = (start, *, max_iterations=None, polish=true))]
+    fn solve<'py>(
+        &self,
+        py: Python<'py>,
+        start: PyReadonlyArray1<'py, f64>,
+        max_iterations: Option<usize>,
+        polish: bool,
+    ) -> PyResult<Bound<'py, PyDict>> {
+        let start = convert::vector(&start).into_owned();
+        convert::probabilities("start", &start, self.coeffs.candidates())?;
+        let d = SolverOptions::default();
+        let options = SolverOptions {
+            max_iterations: max_iterations.unwrap_or(d.max_iterations),
+            polish,
+            ..d
+        };
+        let solution =
+            pool::detached(py, || solve_from(&self.coeffs, start, &options, &Silent))?.py()?;
+        let out = PyDict::new(py);
+        out.set_item("probability", solution.probability.into_pyarray(py))?;
+        out.set_item("exists", solution.exists.into_pyarray(py))?;
+        out.set_item("iterations", solution.iterations)?;
+        out.set_item("evaluations", solution.evaluations)?;
+        out.set_item("stop", solution.stop.name())?;
+        out.set_item("history", solution.history.into_pyarray(py))?;
+        out.set_item("binary", solution.binary.total)?;
+        Ok(out)
     }
 
     fn __repr__(&self) -> String {

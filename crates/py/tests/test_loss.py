@@ -153,3 +153,58 @@ def test_repr_mentions_sizes():
     cloud, samples, owner, _ = random_problem(4)
     text = repr(primfit.ChamferProblem(cloud, samples, owner, cap=0.5))
     assert "candidates=5" in text and "existence" in text
+
+
+# --- solving -------------------------------------------------------------------------
+
+
+def _clusters(seed: int):
+    """Three point clusters far apart; candidates 0, 2, 4 sit on them, 1 and 3 on empty
+    space (a problem whose binary minimum is {0, 2, 4}, checked by brute force)."""
+    rng = np.random.default_rng(seed)
+    centres = np.array([[0, 0, 0], [5, 0, 0], [10, 0, 0], [15, 0, 0], [20, 0, 0]], float)
+    cloud = np.concatenate([centres[k] + 0.05 * rng.standard_normal((20, 3)) for k in (0, 2, 4)])
+    samples = np.concatenate([centres[k] + 0.05 * rng.standard_normal((6, 3)) for k in range(5)])
+    owner = np.repeat(np.arange(5), 6)
+    return primfit.ChamferProblem(cloud, samples, owner, cap=1.0)
+
+
+def _brute_force_minimum(problem) -> np.ndarray:
+    best = min(range(32), key=lambda m: _binary_total(problem, m))
+    return (best >> np.arange(5)) & 1 == 1
+
+
+def _binary_total(problem, mask: int) -> float:
+    p = ((mask >> np.arange(5)) & 1).astype(float)
+    prim, point, _ = problem.evaluate(p)
+    w = problem.weights
+    return w[0] * prim + w[1] * point
+
+
+def test_solve_finds_the_brute_force_minimum_from_several_starts():
+    problem = _clusters(0)
+    truth = _brute_force_minimum(problem)
+    assert truth.tolist() == [True, False, True, False, True]
+    for start in (0.5, 1.0, np.array([0.1, 0.9, 0.2, 0.8, 0.3])):
+        s = problem.solve(start)
+        assert s.exists.tolist() == truth.tolist(), start
+        assert s.binary == pytest.approx(_binary_total(problem, 0b10101))
+        assert len(s.history) == s.iterations + 1 and s.stop in ("gradient", "decrease", "iterations", "line_search")
+
+
+def test_a_warm_start_at_the_answer_needs_no_iterations():
+    problem = _clusters(1)
+    cold = problem.solve()
+    warm = problem.solve(cold.exists.astype(float))
+    assert cold.iterations > 0 and warm.iterations == 0
+    assert warm.exists.tolist() == cold.exists.tolist()
+
+
+def test_solve_rejects_a_bad_start():
+    problem = _clusters(2)
+    with pytest.raises(ValueError, match="length N = 5"):
+        problem.solve(np.full(4, 0.5))
+    with pytest.raises(ValueError, match="not a probability"):
+        problem.solve(np.array([0.5, 0.5, 1.5, 0.5, 0.5]))
+    with pytest.raises(ValueError, match="finite|NaN"):
+        problem.solve(np.array([0.5, np.nan, 0.5, 0.5, 0.5]))

@@ -17,9 +17,23 @@ def _help(module: str) -> str:
     return done.stdout
 
 
+def _run(*args: str) -> subprocess.CompletedProcess:
+    return subprocess.run([sys.executable, "-m", *args], capture_output=True, text=True, timeout=120, check=False)
+
+
 def test_experiments_help_exits_0():
     out = _help("primfit.research.experiments")
-    assert "python -m primfit.research.experiments" in out and "--out" in out
+    assert "python -m primfit.research.experiments" in out and "table" in out and "evaluate" in out
+    table = _run("primfit.research.experiments", "table", "--help")
+    assert table.returncode == 0 and "--out" in table.stdout
+    evaluate = _run("primfit.research.experiments", "evaluate", "--help")
+    assert evaluate.returncode == 0 and "--model" in evaluate.stdout and "--json" in evaluate.stdout
+
+
+def test_pretrained_help_exits_0():
+    require("torch")
+    out = _help("primfit.research.pretrained")
+    assert "python -m primfit.research.pretrained" in out and "--out" in out
 
 
 def test_train_help_exits_0():

@@ -155,6 +155,18 @@ pub enum StopReason {
     LineSearch,
 }
 
+impl StopReason {
+    /// Its name in reports: `gradient`, `decrease`, `iterations` or `line_search`.
+    pub fn name(self) -> &'static str {
+        match self {
+            StopReason::Gradient => "gradient",
+            StopReason::Decrease => "decrease",
+            StopReason::Iterations => "iterations",
+            StopReason::LineSearch => "line_search",
+        }
+    }
+}
+
 /// Outcome of [`solve`].
 #[derive(Debug, Clone)]
 pub struct Solution {
@@ -196,23 +208,41 @@ impl Solution {
     }
 }
 
-/// Minimises the loss of `coeffs` over existence, thresholds and polishes.
+/// Minimises the loss of `coeffs` over existence, thresholds and polishes; every
+/// candidate starts at [`SolverOptions::initial`].
 pub fn solve(
     coeffs: &Coefficients,
     options: &SolverOptions,
     progress: &dyn Progress,
 ) -> Result<Solution> {
+    solve_from(
+        coeffs,
+        vec![options.initial; coeffs.candidates()],
+        options,
+        progress,
+    )
+}
+
+/// [`solve`] from a start of one's own: `start[i]` is candidate i's starting
+/// probability (a warm start, e.g. a network's existence; in `[0, 1]`, or `(0, 1)` for
+/// [`Parameterization::Logit`]). [`SolverOptions::initial`] is not used.
+pub fn solve_from(
+    coeffs: &Coefficients,
+    start: Vec<f64>,
+    options: &SolverOptions,
+    progress: &dyn Progress,
+) -> Result<Solution> {
     validate(options)?;
-    let n = coeffs.candidates();
+    validate_start(&start, coeffs.candidates(), options.parameterization)?;
     let search = match options.search_points {
         Limit::At(m) if coeffs.points() > m => Some(coeffs.row_sample(m)),
         _ => None,
     };
     progress.start("solve", options.max_iterations as u64);
     let run = match &search {
-        None => minimise(coeffs, vec![options.initial; n], options, progress),
+        None => minimise(coeffs, start, options, progress),
         Some(sub) => {
-            let first = minimise(sub, vec![options.initial; n], options, progress);
+            let first = minimise(sub, start, options, progress);
             let full = SolverOptions {
                 max_iterations: options.full_iterations,
                 ..options.clone()
@@ -281,12 +311,25 @@ fn validate(o: &SolverOptions) -> Result<()> {
         check::at_least("search_points", m, 1)?;
     }
     check::in_interval("threshold", o.threshold, Interval::UNIT)?;
-    let starts = match o.parameterization {
+    check::in_interval("initial", o.initial, starts(o.parameterization))
+}
+
+/// The starting probabilities L-BFGS accepts in `parameterization`.
+fn starts(parameterization: Parameterization) -> Interval {
+    match parameterization {
         Parameterization::Box => Interval::UNIT,
         // Logits of 0 and 1 are infinite.
         Parameterization::Logit => Interval::open(0.0, 1.0),
-    };
-    check::in_interval("initial", o.initial, starts)
+    }
+}
+
+/// Checks a warm start: one probability per candidate, each one L-BFGS can start from.
+fn validate_start(start: &[f64], n: usize, parameterization: Parameterization) -> Result<()> {
+    check::same_len("start probabilities", start.len(), "candidate", n)?;
+    let range = starts(parameterization);
+    start
+        .iter()
+        .try_for_each(|&p| check::in_interval("start", p, range))
 }
 
 #[cfg(test)]
@@ -295,6 +338,44 @@ mod tests {
     use crate::chamfer::test_problems::{clusters, segments};
     use crate::chamfer::{ChamferOptions, Evaluator};
     use crate::progress::Silent;
+
+    #[test]
+    fn a_warm_start_at_the_answer_needs_no_iteration_and_keeps_it() {
+        let (cloud, sets) = clusters();
+        let opts = ChamferOptions {
+            cap: 1.0,
+            ..Default::default()
+        };
+        let c = Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap();
+        let cold = solve(&c, &SolverOptions::default(), &Silent).unwrap();
+        assert!(cold.iterations > 0);
+        let answer = cold
+            .exists
+            .iter()
+            .map(|&e| f64::from(u8::from(e)))
+            .collect();
+        let warm = solve_from(&c, answer, &SolverOptions::default(), &Silent).unwrap();
+        assert_eq!(warm.iterations, 0);
+        assert_eq!(warm.exists, cold.exists);
+    }
+
+    #[test]
+    fn a_warm_start_needs_one_probability_per_candidate_in_range() {
+        let (cloud, sets) = clusters();
+        let c = Coefficients::build(&cloud, &sets, &ChamferOptions::default(), &Silent).unwrap();
+        let n = c.candidates();
+        let o = SolverOptions::default();
+        assert!(solve_from(&c, vec![0.5; n - 1], &o, &Silent).is_err());
+        let mut outside = vec![0.5; n];
+        outside[0] = 1.5;
+        assert!(solve_from(&c, outside, &o, &Silent).is_err());
+        let logit = SolverOptions {
+            parameterization: Parameterization::Logit,
+            ..Default::default()
+        };
+        assert!(solve_from(&c, vec![0.0; n], &logit, &Silent).is_err());
+        assert!(solve_from(&c, vec![0.3; n], &logit, &Silent).is_ok());
+    }
 
     #[test]
     fn solve_keeps_one_candidate_per_cluster() {

@@ -24,6 +24,7 @@ from __future__ import annotations
 import json
 import os
 from collections.abc import Mapping, Sequence
+from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
@@ -37,6 +38,7 @@ __all__ = [
     "Candidates",
     "ChamferProblem",
     "FitResult",
+    "Solution",
     "__version__",
     "candidates",
     "chamfer_problems",
@@ -155,8 +157,49 @@ class ChamferProblem:
         """
         return self._inner.evaluate_batch(_floats("P", P, 2))
 
+    def solve(
+        self, start: ArrayLike | float = 0.5, *, max_iterations: int | None = None, polish: bool = True
+    ) -> Solution:
+        """Minimises the loss over existence as ``primfit fit`` does (projected L-BFGS,
+        threshold at 0.5, discrete polish), from ``start``: one probability for every
+        candidate (default 0.5, the fit's start) or an (N,) array, e.g. a network's
+        existence as a warm start.
+        """
+        n = self.n_candidates
+        p0 = np.full(n, float(start)) if isinstance(start, (int, float)) else _floats("start", start, 1)
+        return Solution(**self._inner.solve(p0, max_iterations=max_iterations, polish=polish))
+
     def __repr__(self) -> str:
         return repr(self._inner)
+
+
+@dataclass(frozen=True)
+class Solution:
+    """What :meth:`ChamferProblem.solve` found.
+
+    Attributes
+    ----------
+    probability : (N,) float64 array
+        Existence probabilities at the end of L-BFGS.
+    exists : (N,) bool array
+        The decision, after thresholding and polish.
+    iterations, evaluations : int
+        L-BFGS iterations and loss-and-gradient evaluations.
+    stop : str
+        Why L-BFGS stopped: ``gradient``, ``decrease``, ``iterations`` or ``line_search``.
+    history : (iterations + 1,) float64 array
+        The weighted loss at the start and after every iteration.
+    binary : float
+        The weighted loss of the decided scene (``exists`` as 0/1).
+    """
+
+    probability: np.ndarray
+    exists: np.ndarray
+    iterations: int
+    evaluations: int
+    stop: str
+    history: np.ndarray
+    binary: float
 
 
 def chamfer_problems(

@@ -1,6 +1,7 @@
 """The thesis's chapter-5 experiments on the nine-cylinder scenes, as one command.
 
-    python -m primfit.research.experiments --out results/
+    python -m primfit.research.experiments table --out results/      # Table 5.1, figure 5-2
+    python -m primfit.research.experiments evaluate --model pointnet2 --scenes 1000 --seed 1 --json
 
 Trains, for each of Table 5.1's rows (all → all, multi → single, single → pairs), the
 thesis's PointNet++ with the self-supervised probabilistic chamfer loss, the same
@@ -22,6 +23,7 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import sys
 import time
 from collections.abc import Sequence
 from concurrent.futures import ProcessPoolExecutor
@@ -291,9 +293,8 @@ def write_report(results: Sequence[JobResult], config: ExperimentConfig, seconds
     (out / "results.json").write_text(json.dumps(doc, indent=1))
 
 
-def _parser() -> argparse.ArgumentParser:
+def _table_arguments(p: argparse.ArgumentParser) -> None:
     d = ExperimentConfig()
-    p = argparse.ArgumentParser(prog="python -m primfit.research.experiments", description=__doc__.split("\n\n")[0])
     p.add_argument("--out", default="results", help="output folder (default results/)")
     p.add_argument("--jobs", type=int, default=min(2, os.cpu_count() or 1), help="worker processes")
     p.add_argument("--epochs", type=int, default=d.epochs)
@@ -305,12 +306,55 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--threads", type=int, default=d.threads, help="torch threads per worker")
     p.add_argument("--quick", action="store_true", help="tiny sizes: checks the pipeline in about two minutes")
+
+
+def _evaluate_arguments(p: argparse.ArgumentParser) -> None:
+    p.add_argument("--model", required=True, choices=("pointnet2", "local"), help="shipped network")
+    p.add_argument("--scenes", type=int, default=1000, help="held-out scenes to draw (default 1000)")
+    p.add_argument("--seed", type=int, default=0, help="seed of the held-out scenes (default 0)")
+    p.add_argument("--split", default="all", choices=("all", "multi", "pairs", "single"), help="which subsets")
+    p.add_argument("--offset", type=float, default=0.0, help="largest alignment offset, in pitches (default 0)")
+    p.add_argument("--json", action="store_true", help="print the scores as one JSON object")
+
+
+def _parser() -> argparse.ArgumentParser:
+    p = argparse.ArgumentParser(prog="python -m primfit.research.experiments", description=__doc__.split("\n\n")[0])
+    commands = p.add_subparsers(dest="command", metavar="{table,evaluate}")
+    _table_arguments(commands.add_parser("table", help="train every network of Table 5.1 and write the report (default)"))
+    _evaluate_arguments(commands.add_parser("evaluate", help="score a shipped network on fresh held-out scenes"))
     return p
 
 
+def _with_command(argv: Sequence[str]) -> list[str]:
+    """``argv`` with ``table`` in front when it names no command (the old form)."""
+    argv = list(argv)
+    return argv if argv and argv[0] in ("table", "evaluate", "-h", "--help") else ["table", *argv]
+
+
+def _evaluate(a: argparse.Namespace) -> None:
+    from .evaluate import evaluate
+
+    result = evaluate(a.model, a.scenes, a.seed, offset=a.offset, split=a.split)
+    if a.json:
+        print(json.dumps(result))
+        return
+    print(
+        f"{a.model} on {a.scenes} held-out scenes (seed {a.seed}, {a.split}, offset {a.offset}): "
+        f"scene accuracy {result['scene_accuracy']:.3f}, primitive accuracy {result['primitive_accuracy']:.3f}, "
+        f"recall {result['recall']}, false positives {result['false_positive_rate']}"
+    )
+
+
 def main(argv: Sequence[str] | None = None) -> None:
-    """Runs the experiment and writes the report."""
-    a = _parser().parse_args(argv)
+    """Runs the experiment and writes the report, or evaluates a shipped network."""
+    parser = _parser()
+    a = parser.parse_args(_with_command(sys.argv[1:] if argv is None else argv))
+    if a.command == "evaluate":
+        try:
+            _evaluate(a)
+        except (ValueError, OSError) as e:
+            parser.error(str(e))
+        return
     config = ExperimentConfig(
         points=a.points, scenes=a.scenes, test_scenes=a.test_scenes, epochs=a.epochs, seed=a.seed, threads=a.threads,
         width_pointnet2=a.width_pointnet2, lr_pointnet2=a.lr_pointnet2,

@@ -27,6 +27,7 @@ import torch
 from torch import Tensor, nn
 
 __all__ = [
+    "ExistenceNetwork",
     "LocalExistence",
     "PointNet2",
     "SetAbstraction",
@@ -166,7 +167,9 @@ class PointNet2(nn.Module):
     k : int
         Points per ball.
     dropout : float
-        Dropout rate of the FC blocks.
+        Dropout rate of the FC blocks (default 0: with FC blocks this narrow, dropout
+        left one output blind to its cylinder in two of three seeds, see
+        ``docs/nn_results.md``).
     """
 
     def __init__(
@@ -178,12 +181,18 @@ class PointNet2(nn.Module):
         centres: tuple[int, int] = (32, 8),
         radii: tuple[float, float] = (0.3, 0.8),
         k: int = 16,
-        dropout: float = 0.1,
+        dropout: float = 0.0,
     ) -> None:
         super().__init__()
         if head not in ("existence", "logits"):
             raise ValueError(f"head must be 'existence' or 'logits', got {head!r}")
         w = lambda c: max(4, int(round(c * width)))  # noqa: E731
+        #: The constructor's arguments (plain data: rebuilds the network, see
+        #: :mod:`primfit.research.pretrained`).
+        self.hparams = {
+            "n_out": n_out, "head": head, "width": width, "centres": list(centres), "radii": list(radii),
+            "k": k, "dropout": dropout,
+        }
         self.head = head
         self.sa1 = SetAbstraction(centres[0], radii[0], k, 0, [w(32), w(32), w(64)])
         self.sa2 = SetAbstraction(centres[1], radii[1], k, w(64), [w(64), w(64), w(128)])
@@ -191,12 +200,17 @@ class PointNet2(nn.Module):
         self.fc = nn.Sequential(*_fc_block(w(256), w(128), dropout), *_fc_block(w(128), w(64), dropout))
         self.out = nn.Linear(w(64), n_out)
 
-    def forward(self, xyz: Tensor) -> Tensor:
-        """Clouds ``(B, J, 3)`` → existences ``(B, N)`` in [0, 1] (or logits)."""
+    def logits(self, xyz: Tensor) -> Tensor:
+        """Clouds ``(B, J, 3)`` → pre-activations ``z`` ``(B, N)``: existence is
+        ``scaled_tanh(z)`` (or, with ``head="logits"``, the class logits)."""
         xyz, f = self.sa1(xyz, None)
         xyz, f = self.sa2(xyz, f)
         _, f = self.sa3(xyz, f)
-        z = self.out(self.fc(f[:, 0]))
+        return self.out(self.fc(f[:, 0]))
+
+    def forward(self, xyz: Tensor) -> Tensor:
+        """Clouds ``(B, J, 3)`` → existences ``(B, N)`` in [0, 1] (or logits)."""
+        z = self.logits(xyz)
         return scaled_tanh(z) if self.head == "existence" else z
 
 
@@ -247,6 +261,8 @@ class LocalExistence(nn.Module):
         w = lambda c: max(4, int(round(c * width)))  # noqa: E731
         self.radius, self.scale, self.k = radius, scale, k
         self.register_buffer("centres", torch.as_tensor(centres, dtype=torch.float32).reshape(-1, 3))
+        #: The constructor's arguments but the centres (a buffer, saved with the weights).
+        self.hparams = {"radius": radius, "scale": scale, "k": k, "width": width}
         self.point_mlp = _mlp([3, w(32), w(64), w(128)])
         self.head = nn.Sequential(_mlp([w(128) + 1, w(64)]), nn.Linear(w(64), 1))
 
@@ -273,10 +289,19 @@ class LocalExistence(nn.Module):
         local = (gather_points(xyz, idx) - centres[:, :, None, :]) / self.scale
         return local, valid
 
-    def forward(self, xyz: Tensor) -> Tensor:
-        """Clouds ``(B, J, 3)`` → existences ``(B, N)`` in [0, 1]."""
+    def logits(self, xyz: Tensor) -> Tensor:
+        """Clouds ``(B, J, 3)`` → pre-activations ``z`` ``(B, N)``; existence is
+        ``scaled_tanh(z)``."""
         local, valid = self.neighbourhoods(xyz)
         f = self.point_mlp(local) * valid[..., None]  # ReLU features ≥ 0: masked max = max
         pooled = f.max(dim=2).values
         empty = (~valid.any(dim=-1)).to(pooled.dtype)[..., None]
-        return scaled_tanh(self.head(torch.cat([pooled, empty], dim=-1))[..., 0])
+        return self.head(torch.cat([pooled, empty], dim=-1))[..., 0]
+
+    def forward(self, xyz: Tensor) -> Tensor:
+        """Clouds ``(B, J, 3)`` → existences ``(B, N)`` in [0, 1]."""
+        return scaled_tanh(self.logits(xyz))
+
+
+#: Either existence network (both have ``logits`` and ``hparams``).
+ExistenceNetwork = PointNet2 | LocalExistence

@@ -28,13 +28,14 @@ from torch import Tensor, nn
 
 from . import nine
 from .nine import N_CANDIDATES, N_SUBSETS, NineScenes, SceneSpec
-from .nn import LocalExistence, PointNet2
+from .nn import ExistenceNetwork, LocalExistence, PointNet2, scaled_tanh
 from ..torch import chamfer_loss
 
 __all__ = [
     "ARCHS",
     "DEFAULT_LR",
     "DEFAULT_WIDTH",
+    "LOGIT_PENALTY",
     "LOSSES",
     "SPLITS",
     "Scores",
@@ -53,6 +54,12 @@ ARCHS = ("local", "pointnet2")
 DEFAULT_WIDTH = {"local": 1.0, "pointnet2": 0.5}
 #: Adam step per architecture (the thesis gives none; these train fastest in 40 epochs).
 DEFAULT_LR = {"local": 3e-3, "pointnet2": 1e-2}
+#: Weight λ of the logit penalty ``λ · mean(z²)`` added to the chamfer loss, where
+#: ``p = (1 + tanh z) / 2`` (no effect on the cross-entropy baseline). Without it, an
+#: output pushed far into the tanh's flat tail early in training gets a gradient of
+#: ~1e-6 and stays wrong: two of PointNet++'s nine outputs stuck at 1 (z ≈ 7) was the
+#: whole gap to the thesis (docs/nn_results.md, "Why PointNet++ fell short").
+LOGIT_PENALTY = 3e-2
 LOSSES = ("chamfer", "ce")
 SPLITS: dict[str, Callable[[], np.ndarray]] = {
     "all": nine.all_masks,
@@ -81,6 +88,9 @@ class TrainConfig:
         Layer-width multiplier of the network (``None``: :data:`DEFAULT_WIDTH`).
     seed : int
         Seed of the weights and the batch order.
+    logit_penalty : float
+        λ of the penalty ``λ · mean(z²)`` on the pre-activations (chamfer loss only;
+        default :data:`LOGIT_PENALTY`).
     """
 
     arch: str = "local"
@@ -90,6 +100,7 @@ class TrainConfig:
     lr: float | None = None
     width: float | None = None
     seed: int = 0
+    logit_penalty: float = LOGIT_PENALTY
 
     def __post_init__(self) -> None:
         if self.arch not in ARCHS:
@@ -98,7 +109,8 @@ class TrainConfig:
             raise ValueError(f"loss must be one of {LOSSES}, got {self.loss!r}")
         if self.loss == "ce" and self.arch != "pointnet2":
             raise ValueError("the cross-entropy baseline classifies subsets: arch must be 'pointnet2'")
-
+        if not self.logit_penalty >= 0:
+            raise ValueError(f"logit_penalty must be >= 0, got {self.logit_penalty!r}")
 
     @property
     def learning_rate(self) -> float:
@@ -134,7 +146,7 @@ def split_masks(name: str) -> np.ndarray:
         raise ValueError(f"split must be one of {sorted(SPLITS)}, got {name!r}") from None
 
 
-def build_model(config: TrainConfig, spec: SceneSpec = SceneSpec()) -> nn.Module:
+def build_model(config: TrainConfig, spec: SceneSpec = SceneSpec()) -> ExistenceNetwork:
     """The network of ``config``, seeded with ``config.seed``."""
     torch.manual_seed(config.seed)
     if config.arch == "local":
@@ -156,18 +168,19 @@ def _batches(n: int, size: int, generator: torch.Generator) -> list[Tensor]:
     return batches
 
 
-def _loss(model: nn.Module, config: TrainConfig, scenes: NineScenes, idx: Tensor, x: Tensor) -> Tensor:
+def _loss(model: ExistenceNetwork, config: TrainConfig, scenes: NineScenes, idx: Tensor, x: Tensor) -> Tensor:
     """Mean loss of the scenes ``idx`` (clouds ``x``)."""
-    out = model(x)
+    z = model.logits(x)
     if config.loss == "ce":
         target = torch.as_tensor(scenes.masks[idx.numpy()], device=x.device)
-        return nn.functional.cross_entropy(out, target)
+        return nn.functional.cross_entropy(z, target)
     assert scenes.problems is not None, "chamfer training needs the scenes' problems"
-    return chamfer_loss(out, [scenes.problems[i] for i in idx.tolist()]).mean()
+    chamfer = chamfer_loss(scaled_tanh(z), [scenes.problems[i] for i in idx.tolist()]).mean()
+    return chamfer + config.logit_penalty * (z**2).mean()
 
 
 def train(
-    model: nn.Module,
+    model: ExistenceNetwork,
     scenes: NineScenes,
     config: TrainConfig,
     *,
@@ -242,6 +255,7 @@ def _parser() -> argparse.ArgumentParser:
     p.add_argument("--width", type=float, help=f"layer-width multiplier (default {DEFAULT_WIDTH})")
     p.add_argument("--points", type=int, default=s.points, help="points per scene")
     p.add_argument("--offset", type=float, default=0.0, help="largest alignment offset of the test scenes (pitches)")
+    p.add_argument("--logit-penalty", type=float, default=d.logit_penalty, help="λ of λ·mean(z²) (chamfer loss)")
     p.add_argument("--seed", type=int, default=d.seed)
     p.add_argument("--threads", type=int, help="torch CPU threads (default torch's; 1 is often fastest on a small CPU)")
     p.add_argument("--save", help="write the trained weights here (torch.save of the state dict)")
@@ -253,7 +267,7 @@ def main(argv: Sequence[str] | None = None) -> Scores:
     a = _parser().parse_args(argv)
     if a.threads:
         torch.set_num_threads(a.threads)
-    config = TrainConfig(a.arch, a.loss, a.epochs, a.batch_size, a.lr, a.width, a.seed)
+    config = TrainConfig(a.arch, a.loss, a.epochs, a.batch_size, a.lr, a.width, a.seed, a.logit_penalty)
     spec = SceneSpec(points=a.points)
     train_masks, test_masks = split_masks(a.train), split_masks(a.test)
     train_set = nine.make_scenes(
