@@ -84,6 +84,33 @@ def test_local_network_shapes_ranges_and_equivariance(torch, pnn):
     assert net(x).shape == (3, 1)
 
 
+def test_local_network_with_frames_is_rotation_equivariant_and_reads_types(torch, pnn):
+    torch.manual_seed(2)
+    rng = np.random.default_rng(4)
+    centres = torch.tensor(rng.uniform(-1, 1, (6, 3)), dtype=torch.float32)
+    frames = torch.tensor(np.stack([_rotation(rng) for _ in range(6)]), dtype=torch.float32)
+    types = torch.tensor([0, 1, 1, 0, 1, 0])
+    net = pnn.LocalExistence(centres, radius=0.8, k=16, width=0.25, n_types=2, rotations=frames, types=types)
+    x = torch.tensor(rng.uniform(-1.5, 1.5, (2, 80, 3)), dtype=torch.float32)
+    p = net(x)
+    # Rotating and moving scene and candidates (frames included) together changes nothing.
+    r = torch.tensor(_rotation(rng), dtype=torch.float32)
+    t = torch.tensor([0.5, -2.0, 1.0])
+    net.set_candidates(centres @ r.T + t, r @ frames, types)
+    torch.testing.assert_close(net(x @ r.T + t), p, atol=1e-5, rtol=0)
+    # The type is an input: same neighbourhood, other type, other output.
+    net.set_candidates(centres, frames, 1 - types)
+    assert not torch.allclose(net(x), p)
+    with pytest.raises(ValueError, match="types must be in 0..2"):
+        net.set_candidates(centres, frames, types + 1)
+
+
+def _rotation(rng: np.random.Generator) -> np.ndarray:
+    q, r = np.linalg.qr(rng.standard_normal((3, 3)))
+    q = q * np.sign(np.diag(r))
+    return q if np.linalg.det(q) > 0 else -q
+
+
 def test_local_neighbourhoods_are_the_first_points_in_the_ball(torch, pnn):
     rng = np.random.default_rng(2)
     xyz = torch.tensor(rng.uniform(-1, 1, (2, 40, 3)), dtype=torch.float32)

@@ -40,3 +40,9 @@ def test_train_help_exits_0():
     require("torch")  # train imports torch at the top
     out = _help("primfit.research.train")
     assert "python -m primfit.research.train" in out and "--arch" in out
+
+
+def test_warm_start_help_exits_0():
+    require("torch")
+    out = _help("primfit.research.warm_start")
+    assert "python -m primfit.research.warm_start" in out and "--pipe" in out

@@ -225,11 +225,14 @@ def _mlp(channels: Sequence[int]) -> nn.Sequential:
 class LocalExistence(nn.Module):
     """Per-candidate existence from the points around each candidate (shared weights).
 
-    For candidate i with centre c_i: up to ``k`` cloud points within ``radius`` of c_i,
-    expressed as ``(y - c_i) / scale``; a shared per-point MLP, a
-    max-pool over the kept points, an "empty neighbourhood" flag, and an MLP to one
-    logit; the scaled tanh gives the existence. The candidate set is fixed at
-    construction (``centres``) and can be replaced with :meth:`set_candidates`.
+    For candidate i with centre c_i and frame R_i (columns: its axes in scene
+    coordinates): up to ``k`` cloud points within ``radius`` of c_i, expressed in its
+    frame as ``R_iᵀ (y - c_i) / scale``; a shared per-point MLP, a max-pool over the
+    kept points, an "empty neighbourhood" flag, the candidate's type (one-hot, when
+    ``n_types > 1``), and an MLP to one logit; the scaled tanh gives the existence.
+    Moving the scene and the candidates together (rotation and translation) leaves it
+    unchanged. The candidate set is fixed at construction and can be replaced with
+    :meth:`set_candidates`.
 
     Parameters
     ----------
@@ -243,10 +246,19 @@ class LocalExistence(nn.Module):
         At most this many points per neighbourhood.
     width : float
         Multiplier of the layer widths (1.0: point MLP 32-64-128, head 64).
+    n_types : int
+        Number of candidate types (e.g. 2: cylinder, elbow).
+    rotations : (N, 3, 3) array-like, optional
+        Candidate frames (default: the scene's axes).
+    types : (N,) int array-like, optional
+        Candidate types in ``0..n_types`` (default 0).
     """
 
-    #: Candidate centres (N, 3), a buffer (moves with the module's device).
+    #: Candidate centres (N, 3), frames (N, 3, 3) and types (N,): buffers (they move with
+    #: the module's device and are saved with the weights).
     centres: Tensor
+    rotations: Tensor
+    types: Tensor
 
     def __init__(
         self,
@@ -256,47 +268,88 @@ class LocalExistence(nn.Module):
         scale: float = 1.0,
         k: int = 32,
         width: float = 1.0,
+        n_types: int = 1,
+        rotations: Tensor | npt.ArrayLike | None = None,
+        types: Tensor | npt.ArrayLike | None = None,
     ) -> None:
         super().__init__()
         w = lambda c: max(4, int(round(c * width)))  # noqa: E731
-        self.radius, self.scale, self.k = radius, scale, k
-        self.register_buffer("centres", torch.as_tensor(centres, dtype=torch.float32).reshape(-1, 3))
-        #: The constructor's arguments but the centres (a buffer, saved with the weights).
-        self.hparams = {"radius": radius, "scale": scale, "k": k, "width": width}
+        self.radius, self.scale, self.k, self.n_types = radius, scale, k, n_types
+        self.register_buffer("centres", torch.zeros(0, 3))
+        self.register_buffer("rotations", torch.zeros(0, 3, 3))
+        self.register_buffer("types", torch.zeros(0, dtype=torch.long))
+        self.set_candidates(centres, rotations, types)
+        #: The constructor's arguments but the candidates (buffers, saved with the weights).
+        self.hparams = {"radius": radius, "scale": scale, "k": k, "width": width, "n_types": n_types}
         self.point_mlp = _mlp([3, w(32), w(64), w(128)])
-        self.head = nn.Sequential(_mlp([w(128) + 1, w(64)]), nn.Linear(w(64), 1))
+        type_features = n_types if n_types > 1 else 0
+        self.head = nn.Sequential(_mlp([w(128) + 1 + type_features, w(64)]), nn.Linear(w(64), 1))
 
-    def set_candidates(self, centres: Tensor | npt.ArrayLike) -> None:
-        """Replaces the candidate centres (any number N; the weights are shared)."""
-        self.centres = torch.as_tensor(centres, dtype=torch.float32, device=self.centres.device).reshape(-1, 3)
+    def set_candidates(
+        self,
+        centres: Tensor | npt.ArrayLike,
+        rotations: Tensor | npt.ArrayLike | None = None,
+        types: Tensor | npt.ArrayLike | None = None,
+    ) -> None:
+        """Replaces the candidates (any number N; the weights are shared)."""
+        device = self.centres.device
+        c = torch.as_tensor(centres, dtype=torch.float32, device=device).reshape(-1, 3)
+        n = c.shape[0]
+        r = torch.eye(3, device=device).expand(n, 3, 3) if rotations is None else rotations
+        t = torch.zeros(n, dtype=torch.long) if types is None else types
+        self.centres = c
+        self.rotations = torch.as_tensor(r, dtype=torch.float32, device=device).reshape(n, 3, 3).contiguous()
+        self.types = torch.as_tensor(t, dtype=torch.long, device=device).reshape(n)
+        if n and not 0 <= int(self.types.min()) <= int(self.types.max()) < self.n_types:
+            raise ValueError(f"candidate types must be in 0..{self.n_types}")
 
-    def neighbourhoods(self, xyz: Tensor) -> tuple[Tensor, Tensor]:
+    def neighbourhoods(self, xyz: Tensor, *, chunk: int = 512) -> tuple[Tensor, Tensor]:
         """Local points ``(B, N, k, 3)`` and validity ``(B, N, k)`` of every candidate: the
-        first ``k`` points (by index, as a ball query) within ``radius`` of its centre.
+        first ``k`` points (by index, as a ball query) within ``radius`` of its centre, in
+        its frame. Candidates go ``chunk`` at a time (memory ``B · chunk · J``).
 
         Taking them by index rather than by distance keeps a uniform subset of a dense
         neighbourhood (the nearest ones would be a band around the centre).
         """
+        parts = [
+            self._neighbourhoods(xyz, self.centres[s : s + chunk], self.rotations[s : s + chunk])
+            for s in range(0, self.centres.shape[0], chunk)
+        ]
+        if not parts:
+            b = xyz.shape[0]
+            return xyz.new_zeros(b, 0, self.k, 3), torch.zeros(b, 0, self.k, dtype=torch.bool, device=xyz.device)
+        return torch.cat([p[0] for p in parts], dim=1), torch.cat([p[1] for p in parts], dim=1)
+
+    def _neighbourhoods(self, xyz: Tensor, centres: Tensor, rotations: Tensor) -> tuple[Tensor, Tensor]:
         b, j, _ = xyz.shape
-        n = self.centres.shape[0]
-        centres = self.centres.to(xyz.dtype).expand(b, n, 3)
-        inside = square_distance(centres, xyz) <= self.radius**2  # (B, N, J)
+        n = centres.shape[0]
+        centres = centres.to(xyz.dtype).expand(b, n, 3)
+        inside = square_distance(centres, xyz) <= self.radius**2  # (B, n, J)
         order = torch.arange(j, device=xyz.device).expand(b, n, j)
         key = torch.where(inside, order, order + j)
         idx = key.topk(min(self.k, j), dim=-1, largest=False).values
         valid = idx < j
         idx = torch.where(valid, idx, idx - j)
-        local = (gather_points(xyz, idx) - centres[:, :, None, :]) / self.scale
+        # Row vectors: (y − c) R = (Rᵀ (y − c))ᵀ, the offset in the candidate's frame.
+        offsets = gather_points(xyz, idx) - centres[:, :, None, :]
+        local = torch.einsum("bnkc,ncd->bnkd", offsets, rotations.to(xyz.dtype)) / self.scale
         return local, valid
+
+    def logits_of(self, local: Tensor, valid: Tensor) -> Tensor:
+        """Pre-activations ``(B, N)`` from :meth:`neighbourhoods` (which need no weights:
+        compute them once to train on a fixed set of scenes)."""
+        f = self.point_mlp(local) * valid[..., None]  # ReLU features ≥ 0: masked max = max
+        pooled = f.max(dim=2).values
+        features = [pooled, (~valid.any(dim=-1)).to(pooled.dtype)[..., None]]
+        if self.n_types > 1:
+            one_hot = nn.functional.one_hot(self.types, self.n_types).to(pooled.dtype)
+            features.append(one_hot.expand(pooled.shape[0], -1, -1))
+        return self.head(torch.cat(features, dim=-1))[..., 0]
 
     def logits(self, xyz: Tensor) -> Tensor:
         """Clouds ``(B, J, 3)`` → pre-activations ``z`` ``(B, N)``; existence is
         ``scaled_tanh(z)``."""
-        local, valid = self.neighbourhoods(xyz)
-        f = self.point_mlp(local) * valid[..., None]  # ReLU features ≥ 0: masked max = max
-        pooled = f.max(dim=2).values
-        empty = (~valid.any(dim=-1)).to(pooled.dtype)[..., None]
-        return self.head(torch.cat([pooled, empty], dim=-1))[..., 0]
+        return self.logits_of(*self.neighbourhoods(xyz))
 
     def forward(self, xyz: Tensor) -> Tensor:
         """Clouds ``(B, J, 3)`` → existences ``(B, N)`` in [0, 1]."""

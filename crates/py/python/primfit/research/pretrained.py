@@ -83,7 +83,8 @@ def load_pretrained(name: str, *, folder: Path | None = None) -> ExistenceNetwor
     doc = _read(name, folder)
     state = doc["state_dict"]
     if doc["config"]["arch"] == "local":
-        model: ExistenceNetwork = LocalExistence(state["centres"], **doc["hparams"])
+        frames = {"rotations": state["rotations"], "types": state["types"]}
+        model: ExistenceNetwork = LocalExistence(state["centres"], **frames, **doc["hparams"])
     else:
         model = PointNet2(**doc["hparams"])
     model.load_state_dict(state)
