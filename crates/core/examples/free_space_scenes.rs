@@ -6,7 +6,7 @@
 //! 3 cm, wall time; the truth's own row first. Results: `docs/free_space.md`.
 //!
 //! ```text
-//! cargo run --release -p primfit-core --example free_space_scenes [-- COLUMNS ROWS]
+//! cargo run --release -p primfit-core --example free_space_scenes [-- COLUMNS ROWS [SEED]]
 //! ```
 use std::time::Instant;
 
@@ -60,10 +60,11 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         .map(|a| a.parse())
         .collect::<Result<_, _>>()?;
     let (columns, rows) = (*args.first().unwrap_or(&64), *args.get(1).unwrap_or(&48));
+    let seed = *args.get(2).unwrap_or(&1) as u64;
     println!("| scene | method | primitives | point→model | model→point | coverage@3cm | s |");
     println!("|---|---|---|---|---|---|---|");
     for name in RAY_SCENES {
-        let scene = ray_scene(name, columns, rows, 1)?;
+        let scene = ray_scene(name, columns, rows, seed)?;
         let points = &scene.cloud.points;
         row(name, "truth", points, &scene.truth, 0.0);
         let runs: [(&str, FitOptions); 5] = [
@@ -76,7 +77,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
                         sigma: Some(0.02),
                         ..Default::default()
                     }),
-                    seed: 1,
+                    seed,
                     ..lattice(false)
                 },
             ),

@@ -137,25 +137,30 @@ fn ray_cast_scenes_fit_without_invented_surface_with_and_without_free_space() {
 }
 
 #[test]
-fn mcmc_on_a_ray_cast_room_invents_no_surface() {
-    let scene = ray_scene("room", 48, 36, 1).unwrap();
-    let points = &scene.cloud.points;
-    let options = FitOptions {
-        method: MethodOptions::Mcmc(McmcFitOptions {
-            sigma: Some(0.02),
-            ..Default::default()
-        }),
-        seed: 1,
-        ..lattice(None)
-    };
-    let result = fit(&scene.cloud, &options, &Silent).unwrap();
-    let (truth_mp, _) = measures(points, &scene.truth);
-    let (mp, covered) = measures(points, &result.primitives);
-    assert!(
-        mp <= 1.5 * truth_mp,
-        "model→point {mp} vs the truth's {truth_mp}"
-    );
-    assert!(covered > 0.97, "coverage {covered}");
+fn mcmc_on_ray_cast_scenes_invents_no_surface_and_keeps_coverage() {
+    // The corridor's second room is seen only through the doorway, with points several
+    // times sparser than the corridor's: counted at the cloud's median density, its
+    // unobserved surface dropped it with its points (coverage 88 %).
+    for name in ["room", "corridor", "object"] {
+        let scene = ray_scene(name, 48, 36, 1).unwrap();
+        let points = &scene.cloud.points;
+        let options = FitOptions {
+            method: MethodOptions::Mcmc(McmcFitOptions {
+                sigma: Some(0.02),
+                ..Default::default()
+            }),
+            seed: 1,
+            ..lattice(None)
+        };
+        let result = fit(&scene.cloud, &options, &Silent).unwrap();
+        let (truth_mp, _) = measures(points, &scene.truth);
+        let (mp, covered) = measures(points, &result.primitives);
+        assert!(
+            mp <= 1.5 * truth_mp,
+            "{name}: model→point {mp} vs the truth's {truth_mp}"
+        );
+        assert!(covered > 0.99, "{name}: coverage {covered}");
+    }
 }
 
 #[test]

@@ -23,11 +23,11 @@ use std::time::Instant;
 use super::{FitOptions, FitResult, FitStats, McmcSettings, MethodSettings, Settings};
 use crate::chamfer::LossValue;
 use crate::lattice::CandidateSet;
+use crate::na::Point3;
 use crate::progress::Progress;
 use crate::ray::{
-    Entry, McmcOptions, PriorOptions, RayModel, RayTable, Rays, SEEN_SIGMAS,
-    UNOBSERVED_SAMPLE_NATS, existence_prior, flip_rates, occupancy_prior, sample,
-    unobserved_samples,
+    Entry, McmcOptions, PriorOptions, RayModel, RayTable, Rays, SEEN_SIGMAS, UNOBSERVED_POINT_NATS,
+    existence_prior, flip_rates, local_spacings, occupancy_prior, sample, unobserved_points,
 };
 use crate::solve::{Solution, StopReason};
 use crate::spatial::PointIndex;
@@ -87,7 +87,14 @@ pub(super) fn fit_mcmc(
 
     let t0 = Instant::now();
     let (candidates, prior) = supported_candidates(cloud, &settings, mcmc.prior)?;
-    let prior = observed_surface_prior(&index, &candidates, &prior, &settings, &model)?;
+    let prior = observed_surface_prior(
+        &index,
+        &cloud.points,
+        &candidates,
+        &prior,
+        &settings,
+        &model,
+    )?;
     let lattice_seconds = t0.elapsed().as_secs_f64();
     progress.message(&format!(
         "{} candidates supported by the prior",
@@ -194,21 +201,29 @@ fn check_cloud(cloud: &PointCloud) -> Result<Rays> {
 }
 
 /// `prior` times the occupancy factor of `crate::ray` (`unseen.rs`): each candidate's
-/// odds drop by [`UNOBSERVED_SAMPLE_NATS`] per point spacing² of its surface with no
-/// point within `max(SEEN_SIGMAS σ, point spacing)`. Samples are `sample_spacing` apart
-/// (each stands for `(sample_spacing / point_spacing)²` points' worth of surface).
+/// odds drop by [`UNOBSERVED_POINT_NATS`] per point's worth of its surface (at its own
+/// point density) with no point within `max(SEEN_SIGMAS σ, local spacing)`. Samples are
+/// `max(sample_spacing, point_spacing)` apart.
 fn observed_surface_prior(
     index: &PointIndex,
+    points: &[Point3<f64>],
     candidates: &[Primitive],
     prior: &[f64],
     settings: &Settings,
     model: &RayModel,
 ) -> Result<Vec<f64>> {
     let spacing = settings.sample_spacing.max(settings.point_spacing);
-    let tolerance = (SEEN_SIGMAS * model.sigma).max(settings.point_spacing);
-    let unobserved = unobserved_samples(index, candidates, spacing, tolerance)?;
-    let per_sample = UNOBSERVED_SAMPLE_NATS * (spacing / settings.point_spacing).powi(2);
-    occupancy_prior(prior, &unobserved, per_sample)
+    let tolerance = SEEN_SIGMAS * model.sigma;
+    let spacings = local_spacings(index, points);
+    let unobserved = unobserved_points(
+        index,
+        &spacings,
+        candidates,
+        spacing,
+        tolerance,
+        settings.point_spacing,
+    )?;
+    occupancy_prior(prior, &unobserved, UNOBSERVED_POINT_NATS)
 }
 
 /// Lattice candidates whose §4.2.1 prior is positive, with that prior.

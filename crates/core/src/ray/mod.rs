@@ -47,4 +47,4 @@ pub use likelihood::{RayModel, crossing_terms, log_upper_tail, ray_log_likelihoo
 pub use mcmc::{McmcOptions, McmcResult, flip_rates, sample};
 pub use prior::{PriorOptions, existence_prior};
 pub use raytree::{Entry, RayTable, RayTree, Rays, SEEN_SIGMAS, naive_log_likelihood};
-pub use unseen::{UNOBSERVED_SAMPLE_NATS, occupancy_prior, unobserved_samples};
+pub use unseen::{UNOBSERVED_POINT_NATS, local_spacings, occupancy_prior, unobserved_points};
