@@ -273,17 +273,18 @@ pub fn detect_timed(
     let radius = median_radius(&nb);
     let pitch = voxel.unwrap_or(spacing);
     let (fine, coarse) = match options.noise {
-        Some(s) => (NoiseMap::uniform(s), NoiseMap::uniform(s)),
+        Some(s) => (NoiseMap::uniform(s), None),
         None => (
             NoiseMap::new(&samples, &nb, spacing, radius),
-            coarse_noise(&samples, pitch, k, spacing),
+            sees_finer_than_coarse(voxel, spacing)
+                .then(|| coarse_noise(&samples, pitch, k, spacing)),
         ),
     };
     let sigma: Vec<f64> = samples.iter().map(|p| fine.at(p)).collect();
     let model_sigma: Vec<f64> = samples
         .iter()
         .zip(&sigma)
-        .map(|(p, s)| coarse.at(p).max(*s))
+        .map(|(p, s)| coarse.as_ref().map_or(*s, |c| c.at(p).max(*s)))
         .collect();
     let angles: Vec<f64> = match options.angle {
         Some(a) => vec![a; samples.len()],
@@ -333,7 +334,9 @@ pub fn detect_timed(
     };
     let mut detection = expand::expand(points, &sampled, parts, grow.neighbours, tolerance);
     clock.lap("expand");
-    let model_noise = coarse.global().max(fine.global());
+    let model_noise = coarse
+        .as_ref()
+        .map_or(fine.global(), |c| c.global().max(fine.global()));
     leftover::Leftovers {
         spacing,
         k,
@@ -387,6 +390,16 @@ impl Detection {
             samples: 0,
         }
     }
+}
+
+/// Whether the coarse noise scale (`noise.rs`) is wider than the samples' own: the
+/// scale of correlated sensor noise is [`noise::COARSE_FACTOR`] point spacings. A cloud
+/// subsampled to a voxel at least that wide already spans it in its fine neighbourhoods;
+/// a coarse grid `COARSE_FACTOR` voxels wide would measure the scene's layout (on a 2M-
+/// point floor plan, 0.8 m voxels: neighbourhoods across floor–wall corners, σ 0.25 m
+/// against 4 mm), not the sensor.
+fn sees_finer_than_coarse(voxel: Option<f64>, spacing: f64) -> bool {
+    voxel.is_none_or(|v| v < noise::COARSE_FACTOR * spacing)
 }
 
 /// The coarse-scale noise map: neighbourhoods of `k` points of a voxel grid of

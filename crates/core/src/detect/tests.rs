@@ -171,6 +171,29 @@ fn a_rotated_room_gives_one_plane_per_face() {
 }
 
 #[test]
+fn a_coarsely_subsampled_room_judges_models_at_the_sensor_noise_not_the_layout() {
+    // Subsampled to voxels many point spacings wide, a coarse grid 4 voxels wide would
+    // span the room's corners (σ of the layout, tens of cm); the fine scale already
+    // spans the sensor's correlated noise, so models are judged at it.
+    let (scene, _) = room(1500.0, 0.003, 3);
+    let options = DetectOptions {
+        max_samples: Some(2_000),
+        ..Default::default()
+    };
+    let detection = scene.detect(&options);
+    let voxel = detection.voxel.expect("subsampled");
+    assert!(
+        voxel >= noise::COARSE_FACTOR * detection.spacing,
+        "voxel {voxel}"
+    );
+    assert_eq!(detection.model_noise, detection.noise);
+    assert!(detection.model_noise < 0.02, "σ {}", detection.model_noise);
+    // The floor and the four walls (the small table faces fall below 2 000 samples).
+    let planes = detection.segments.len();
+    assert!((5..=7).contains(&planes), "{planes} segments");
+}
+
+#[test]
 fn detection_does_not_depend_on_the_thread_count() {
     let (scene, _) = room(400.0, 0.003, 2);
     let pool = |n| {
