@@ -166,7 +166,7 @@ class ChamferProblem:
         existence as a warm start.
         """
         n = self.n_candidates
-        p0 = np.full(n, float(start)) if isinstance(start, (int, float)) else _floats("start", start, 1)
+        p0 = np.full(n, float(np.asarray(start))) if np.ndim(start) == 0 else _floats("start", start, 1)
         return Solution(**self._inner.solve(p0, max_iterations=max_iterations, polish=polish))
 
     def __repr__(self) -> str:
