@@ -88,6 +88,13 @@ impl PointIndex {
         out
     }
 
+    /// The distance from `q`, one of the indexed points, to the nearest other one
+    /// (0 for an exact duplicate; `None` when fewer than two points are indexed): its
+    /// local point spacing.
+    pub fn spacing_at(&self, q: &Point3<f64>) -> Option<f64> {
+        self.nearest_n(q, 2).get(1).map(|r| r.1.sqrt())
+    }
+
     /// Every point with squared distance ≤ `r2`, unsorted.
     pub fn within(&self, q: &Point3<f64>, r2: f64) -> Vec<(u32, f64)> {
         let Some(tree) = self.tree.as_ref() else {
@@ -118,9 +125,7 @@ impl PointIndex {
         if points.len() < 2 {
             return None;
         }
-        strided_median(points.len(), max_probe, |i| {
-            self.nearest_n(&points[i], 2).get(1).map(|r| r.1.sqrt())
-        })
+        strided_median(points.len(), max_probe, |i| self.spacing_at(&points[i]))
     }
 }
 

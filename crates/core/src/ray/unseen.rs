@@ -35,7 +35,7 @@
 use rayon::prelude::*;
 
 use crate::na::Point3;
-use crate::spatial::PointIndex;
+use crate::spatial::{PointIndex, strided_median};
 use crate::{Primitive, Result, check};
 
 /// Prior log-odds (nats) charged per unobserved point's worth of surface (module docs):
@@ -54,7 +54,7 @@ const MIN_LOGIT: f64 = -700.0;
 pub fn local_spacings(index: &PointIndex, points: &[Point3<f64>]) -> Vec<f64> {
     points
         .par_iter()
-        .map(|p| index.nearest_n(p, 2).get(1).map_or(0.0, |r| r.1.sqrt()))
+        .map(|p| index.spacing_at(p).unwrap_or(0.0))
         .collect()
 }
 
@@ -76,7 +76,7 @@ pub fn unobserved_points(
     Ok(candidates
         .par_iter()
         .map(|c| {
-            let mut observed = Vec::new();
+            let mut observed: Vec<f64> = Vec::new();
             let mut unobserved = 0usize;
             for x in c.sample_surface(sample_spacing) {
                 match index.nearest(&x) {
@@ -86,21 +86,11 @@ pub fn unobserved_points(
                     _ => unobserved += 1,
                 }
             }
-            let own = median_positive(&mut observed).unwrap_or(median_spacing);
+            let own = strided_median(observed.len(), observed.len(), |i| Some(observed[i]))
+                .unwrap_or(median_spacing);
             unobserved as f64 * (sample_spacing / own).powi(2)
         })
         .collect())
-}
-
-/// The median of the positive values (`None` when there is none).
-fn median_positive(values: &mut Vec<f64>) -> Option<f64> {
-    values.retain(|v| *v > 0.0);
-    if values.is_empty() {
-        return None;
-    }
-    let mid = values.len() / 2;
-    values.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(values[mid])
 }
 
 /// `prior` with each candidate's odds lowered by `nats_per_point` per unobserved point's
