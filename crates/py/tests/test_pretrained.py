@@ -48,7 +48,10 @@ def test_shipped_weights_are_small_and_carry_their_card(pretrained):
         assert card["config"]["arch"] == name and card["seconds"] > 0 and "primfit.research.pretrained" in card["command"]
 
 
-def test_load_pretrained_is_importable_without_torch_and_returns_an_eval_module(torch):
+def test_load_pretrained_imports_torch_only_when_called_and_returns_an_eval_module(torch):
+    probe = "import sys, primfit.research; primfit.research.load_pretrained; print('torch' in sys.modules)"
+    done = subprocess.run([sys.executable, "-c", probe], capture_output=True, text=True, timeout=120, check=False)
+    assert done.returncode == 0 and done.stdout.strip() == "False", done.stderr
     import primfit.research
 
     model = primfit.research.load_pretrained("local")
