@@ -35,7 +35,10 @@ mod _primfit {
     };
 
     #[pymodule_export]
-    use super::tiles::{fit_tile, merge_tiles, tile_grid_array, tile_grid_file, tile_points};
+    use super::tiles::{
+        fit_tile, merge_tiles, spilled_tile_points, split_survey, tile_grid_array, tile_grid_file,
+        tile_points,
+    };
 
     /// The library version.
     #[allow(non_upper_case_globals)]

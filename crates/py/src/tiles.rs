@@ -83,6 +83,39 @@ pub fn tile_points<'py>(
     Ok(points_array(py, &points))
 }
 
+/// Splits the points `first .. first + count` of the LAS/LAZ survey `path` into per-tile
+/// spill files in `dir` as splitter `part` ([`tiles::split_survey`]); returns the points
+/// each tile received.
+#[pyfunction]
+pub fn split_survey(
+    py: Python<'_>,
+    path: PathBuf,
+    grid: &str,
+    first: u64,
+    count: u64,
+    dir: PathBuf,
+    part: usize,
+) -> PyResult<Vec<u64>> {
+    let grid = parse_grid(grid)?;
+    pool::detached(py, || {
+        tiles::split_survey(&path, &grid, first, count, &dir, part)
+    })?
+    .py()
+}
+
+/// The points `(n, 3)` of tile `tile` from the spill files of splitters `0..parts` in
+/// `dir` ([`tiles::read_spilled_tile`]).
+#[pyfunction]
+pub fn spilled_tile_points<'py>(
+    py: Python<'py>,
+    dir: PathBuf,
+    tile: usize,
+    parts: usize,
+) -> PyResult<Bound<'py, PyArray2<f64>>> {
+    let points = pool::detached(py, || tiles::read_spilled_tile(&dir, tile, parts))?.py()?;
+    Ok(points_array(py, &points))
+}
+
 /// Fits tile `tile` of `grid` from `points (n, 3)` (at least its haloed box) with
 /// `options`; returns the tile as JSON ([`TileFit::to_json`]).
 #[pyfunction]

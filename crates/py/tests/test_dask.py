@@ -77,15 +77,30 @@ def _write_las(path: Path, cloud: np.ndarray, scale: float = 0.001) -> None:
     path.write_bytes(header + records.tobytes())
 
 
-def test_a_las_file_is_read_tile_by_tile(client: Any, tmp_path: Path) -> None:
+def test_a_las_file_is_split_once_and_fitted_tile_by_tile(
+    client: Any, tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+) -> None:
     cloud = _floor(12_000)
     path = tmp_path / "floor.las"
     _write_las(path, cloud)
     assert primfit.read_ply(path)["points"].shape == cloud.shape
+    # Two splitters (one per worker), each over half of the file's points.
+    monkeypatch.setattr(primfit.dask, "SPLIT_MIN_POINTS", 5_000)
     from_file = primfit.dask.fit_tiled(path, tile_size=TILE, client=client)
     from_array = primfit.dask.fit_tiled(cloud, tile_size=TILE, client=client)
     assert abs(len(from_file) - len(from_array)) <= 1
     assert from_file.metrics["points"] == len(cloud)
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["floor.las"]  # spill removed
+    spill = tmp_path / "spill"
+    spill.mkdir()
+    primfit.dask.fit_tiled(path, tile_size=TILE, client=client, spill_dir=spill)
+    assert list(spill.iterdir()) == []
+
+
+def test_a_spill_folder_the_worker_cannot_see_is_one_clear_error(tmp_path: Path) -> None:
+    grid = primfit._primfit.tile_grid_array(_floor(2_000), TILE, None)
+    with pytest.raises(OSError, match="spill_dir"):
+        primfit.dask._fit_spilled_tile(str(tmp_path), 2, 500, grid, 0, {})
 
 
 def test_bad_input_is_one_clear_error(client: Any, tmp_path: Path) -> None:

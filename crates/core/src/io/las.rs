@@ -94,15 +94,32 @@ pub(crate) fn read_cloud_report(path: &Path) -> Result<(PointCloud, ReadReport)>
 /// units), holding one batch at a time: the memory used does not grow with the file.
 /// Checks the file as [`read_cloud_report`] does. Returns the number of points read.
 pub(crate) fn visit_points(path: &Path, visit: &mut dyn FnMut(&[[f64; 3]])) -> Result<u64> {
+    visit_point_range(path, 0, u64::MAX, visit)
+}
+
+/// As [`visit_points`], for the points `first .. first + count` of the file only (clipped
+/// to the points it declares; a LAZ reader seeks to the chunk holding `first`), so that
+/// several readers can share one pass over a file.
+pub(crate) fn visit_point_range(
+    path: &Path,
+    first: u64,
+    count: u64,
+    visit: &mut dyn FnMut(&[[f64; 3]]),
+) -> Result<u64> {
     let mut reader = open_checked(path)?;
     let header = reader.header().clone();
     let declared = header.number_of_points();
+    let first = first.min(declared);
+    let end = first.saturating_add(count).min(declared);
+    if first > 0 {
+        reader.seek(first).map_err(|e| las_error(path, &e))?;
+    }
     let mut data = PointDataBuilder::new().for_header(&header).build();
     let mut batch = Vec::with_capacity(BATCH as usize);
-    let mut seen = 0u64;
-    while seen < declared {
+    let mut seen = first;
+    while seen < end {
         let got = reader
-            .fill_points(BATCH, &mut data)
+            .fill_points(BATCH.min(end - seen), &mut data)
             .map_err(|e| las_error(path, &e))?;
         if got == 0 {
             let msg = format!("truncated point data: {seen} of {declared} points");
@@ -118,7 +135,7 @@ pub(crate) fn visit_points(path: &Path, visit: &mut dyn FnMut(&[[f64; 3]])) -> R
         visit(&batch);
         seen += got;
     }
-    Ok(seen)
+    Ok(seen - first)
 }
 
 /// The xyz bounds a LAS/LAZ file's header declares (world coordinates, scene units) and

@@ -264,6 +264,19 @@ pub(crate) fn visit_las_points(path: &Path, visit: &mut dyn FnMut(&[[f64; 3]])) 
     guard::decoder(path, "LAS/LAZ", || las::visit_points(path, visit))
 }
 
+/// The points `first .. first + count` of the LAS/LAZ file `path` in batches (see
+/// `las::visit_point_range`), a decoder panic turned into an error.
+pub(crate) fn visit_las_range(
+    path: &Path,
+    first: u64,
+    count: u64,
+    visit: &mut dyn FnMut(&[[f64; 3]]),
+) -> Result<u64> {
+    guard::decoder(path, "LAS/LAZ", || {
+        las::visit_point_range(path, first, count, visit)
+    })
+}
+
 /// The header bounds and point count of the LAS/LAZ file `path` (see `las::header_bounds`).
 pub(crate) fn las_header_bounds(path: &Path) -> Result<([f64; 3], [f64; 3], u64)> {
     guard::decoder(path, "LAS/LAZ", || las::header_bounds(path))

@@ -138,13 +138,15 @@ impl TileGrid {
 
     /// The tiles whose cores come within `h` (scene units, at most the halo) of `(x, y)`.
     fn tiles_within(&self, x: f64, y: f64, h: f64) -> Vec<usize> {
+        // One cell wider each way than `x ± h` reaches, so that a point exactly on a
+        // haloed box's edge (which `in_grown` counts in) is not missed by the rounding.
         let (i0, i1) = (
-            self.cell(x - h, self.origin[0], self.nx),
-            self.cell(x + h, self.origin[0], self.nx),
+            self.cell(x - h, self.origin[0], self.nx).saturating_sub(1),
+            (self.cell(x + h, self.origin[0], self.nx) + 1).min(self.nx - 1),
         );
         let (j0, j1) = (
-            self.cell(y - h, self.origin[1], self.ny),
-            self.cell(y + h, self.origin[1], self.ny),
+            self.cell(y - h, self.origin[1], self.ny).saturating_sub(1),
+            (self.cell(y + h, self.origin[1], self.ny) + 1).min(self.ny - 1),
         );
         let mut out = Vec::with_capacity(4);
         for j in j0..=j1 {

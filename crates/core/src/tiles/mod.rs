@@ -7,6 +7,7 @@
 //! |---|---|---|
 //! | partition | `grid.rs` | [`TileGrid`]: tiles, cores, haloed boxes, owners, seam bands |
 //! | read | `stream.rs` | [`read_tile`]: one tile's haloed points from a LAS/LAZ file in chunks ([`survey_bounds`] from the header) |
+//! | split | `split.rs` | [`split_survey`]: one pass over a LAS/LAZ file (or a range of its points) into per-tile spill files; [`read_spilled_tile`] |
 //! | fit a tile | `mod.rs` | [`fit_tile`]: the ordinary [`fit`] of the tile's points, the primitives whose centres lie in its core, its seam points |
 //! | merge | `merge.rs` | [`merge_tiles`]: coplanar plane pieces and collinear cylinders across seams joined, duplicates dropped by an existence re-check on the seam points |
 //!
@@ -17,6 +18,7 @@
 
 mod grid;
 mod merge;
+mod split;
 mod stream;
 #[cfg(test)]
 mod tests;
@@ -26,6 +28,7 @@ pub use merge::{
     DUPLICATE_SHARE, MERGE_ANGLE_DEG, MERGE_RADIUS_RATIO, MergeTolerance, Piece, dedup_on_seams,
     merge_pieces, merge_two,
 };
+pub use split::{SPILL_BUFFER_POINTS, read_spilled_tile, spill_path, split_survey};
 pub use stream::{read_tile, survey_bounds};
 
 use nalgebra::Point3;

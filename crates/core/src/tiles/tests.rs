@@ -149,6 +149,50 @@ fn tiles_of_las_and_laz_files_are_read_in_batches() {
 }
 
 #[test]
+fn a_split_in_parts_gives_each_tile_the_points_a_direct_read_gives() {
+    let dir = std::env::temp_dir().join(format!("primfit-split-{}", std::process::id()));
+    std::fs::create_dir_all(&dir).unwrap();
+    // 70 000 points: more than one LAZ chunk (50 000), so a part seeks into the file.
+    let points: Vec<Point3<f64>> = (0..70_000)
+        .map(|k| {
+            Point3::new(
+                (k % 250) as f64 * 0.1,
+                (k / 250) as f64 * 0.1,
+                0.001 * k as f64,
+            )
+        })
+        .collect();
+    let path = dir.join("s.laz");
+    crate::io::write_las(&path, &points, 0.001).unwrap();
+    let (lo, hi, n) = survey_bounds(&path).unwrap();
+    let grid = TileGrid::new(&lo, &hi, 10.0, 1.0).unwrap();
+    let parts = [(0, 30_000), (30_000, 25_000), (55_000, u64::MAX)];
+    let mut received = vec![0u64; grid.len()];
+    for (part, &(first, count)) in parts.iter().enumerate() {
+        let counts = split_survey(&path, &grid, first, count, &dir, part).unwrap();
+        received.iter_mut().zip(counts).for_each(|(r, c)| *r += c);
+    }
+    assert_eq!(n, 70_000);
+    for (t, &count) in received.iter().enumerate() {
+        let mut want = read_tile(&path, &grid, t).unwrap();
+        let mut got = read_spilled_tile(&dir, t, parts.len()).unwrap();
+        assert_eq!(got.len() as u64, count, "tile {t}");
+        let key = |p: &Point3<f64>| (p.z * 1e6).round() as i64;
+        want.sort_by_key(key);
+        got.sort_by_key(key);
+        assert_eq!(got.len(), want.len(), "tile {t}");
+        assert!(got == want, "tile {t}: the points differ");
+    }
+    // A second split of the same part replaces its files instead of appending.
+    split_survey(&path, &grid, 0, 30_000, &dir, 0).unwrap();
+    let total: usize = (0..grid.len())
+        .map(|t| read_spilled_tile(&dir, t, parts.len()).unwrap().len())
+        .sum();
+    assert_eq!(total as u64, received.iter().sum::<u64>());
+    std::fs::remove_dir_all(&dir).unwrap();
+}
+
+#[test]
 fn bad_tiles_are_one_clear_error() {
     let cloud = crate::PointCloud::from_points(vec![Point3::origin(), Point3::new(1.0, 1.0, 1.0)]);
     let grid = TileGrid::new(&Point3::origin(), &Point3::new(1.0, 1.0, 1.0), 1.0, 0.1).unwrap();

@@ -6,10 +6,13 @@ tiles on the coordinator: a primitive is owned by the tile holding its centre, c
 planes and collinear cylinders crossing a seam are joined, and duplicates are dropped by
 an existence re-check on the seam points. The result is in the input's frame.
 
-A file source (LAS/LAZ) is never held whole: each worker reads its tile in batches
-from the file (the path must be readable on every worker), so a worker's memory is
-bounded by its tile, and the coordinator holds only primitives and seam points. Other
-formats are read whole by each worker (convert a survey to LAZ to tile it).
+A file source (LAS/LAZ) is never held whole and is read once: the workers first split
+it, each over its own range of the file's points, into per-tile spill files (24 bytes a
+point, in a temporary folder beside the survey or in ``spill_dir``: it must be on a
+filesystem every worker sees, as the survey itself is), then each worker fits a tile
+from its spill files. A worker's memory is bounded by its tile, and the coordinator
+holds only primitives and seam points. Other formats are read whole by each worker
+(convert a survey to LAZ to tile it).
 
 Needs the optional ``dask`` extra: ``pip install primfit[dask]``. Also a command line,
 ``python -m primfit.dask SURVEY.laz --scheduler ADDRESS``, which ``primfit fit --tiles
@@ -21,7 +24,9 @@ from __future__ import annotations
 import argparse
 import json
 import os
+import shutil
 import sys
+import tempfile
 import time
 from collections.abc import Sequence
 from typing import Any
@@ -33,6 +38,9 @@ from . import FitResult, _fit_options, _primfit, write_mesh
 from ._convert import _points
 
 __all__ = ["fit_tiled", "main"]
+
+#: Points a splitter reads at least: a survey smaller than two of these is split by one.
+SPLIT_MIN_POINTS = 2_000_000
 
 
 def _distributed() -> Any:
@@ -50,6 +58,68 @@ def _fit_file_tile(path: str, grid: str, tile: int, options: dict[str, Any]) -> 
     """On a worker: tile ``tile``'s points read from ``path``, fitted; the tile's JSON."""
     points = _primfit.tile_points(path, grid, tile)
     return _primfit.fit_tile(points, grid, tile, _fit_options(options))
+
+
+def _split_part(path: str, grid: str, first: int, count: int, spill: str, part: int) -> list[int]:
+    """On a worker: points ``first .. first + count`` of ``path`` into spill files."""
+    return _primfit.split_survey(path, grid, first, count, spill, part)
+
+
+def _fit_spilled_tile(
+    spill: str, parts: int, expected: int, grid: str, tile: int, options: dict[str, Any]
+) -> str:
+    """On a worker: tile ``tile`` read from its spill files, fitted; the tile's JSON."""
+    points = _primfit.spilled_tile_points(spill, tile, parts)
+    if len(points) != expected:
+        raise OSError(
+            f"tile {tile}: {len(points)} of its {expected} points are in the spill folder "
+            f"{spill}: the workers do not share it (pass spill_dir= on a shared filesystem)"
+        )
+    return _primfit.fit_tile(points, grid, tile, _fit_options(options))
+
+
+def _is_las(path: str) -> bool:
+    """Whether ``path`` starts as a LAS/LAZ file does (``LASF``)."""
+    with open(path, "rb") as f:
+        return f.read(4) == b"LASF"
+
+
+def _spill_folder(path: str, spill_dir: str | os.PathLike[str] | None) -> str:
+    """A new folder for the spill files: in ``spill_dir``, else beside the survey (where
+    the workers that read the survey can reach it), else in the system's temp folder."""
+    if spill_dir is not None:
+        return tempfile.mkdtemp(prefix="primfit-tiles-", dir=os.fspath(spill_dir))
+    try:
+        return tempfile.mkdtemp(prefix=".primfit-tiles-", dir=os.path.dirname(os.path.abspath(path)))
+    except OSError:
+        return tempfile.mkdtemp(prefix="primfit-tiles-")
+
+
+def _fit_split_file(
+    client: Any, distributed: Any, path: str, grid: str, points: int, spill: str,
+    fit_options: dict[str, Any], progress: bool,
+) -> FitResult:
+    """The survey ``path`` split once by the workers, then fitted tile by tile."""
+    workers = max(1, len(client.scheduler_info().get("workers", {})))
+    parts = max(1, min(workers, points // SPLIT_MIN_POINTS))
+    step = -(-points // parts)
+    splits = [
+        client.submit(_split_part, path, grid, k * step, step, spill, k, pure=False)
+        for k in range(parts)
+    ]
+    t0 = time.monotonic()
+    received = [0] * (json.loads(grid)["nx"] * json.loads(grid)["ny"])
+    for done, future in enumerate(distributed.as_completed(splits), start=1):
+        for t, c in enumerate(future.result()):
+            received[t] += c
+        if progress:
+            print(f"split {done}/{parts} ({time.monotonic() - t0:.1f} s)", file=sys.stderr)
+    futures = [
+        client.submit(_fit_spilled_tile, spill, parts, n, grid, t, fit_options, pure=False)
+        for t, n in enumerate(received)
+        if n > 0
+    ]
+    return _gather(distributed, futures, progress)
 
 
 def _fit_array_tile(points: np.ndarray, grid: str, tile: int, options: dict[str, Any]) -> str:
@@ -87,6 +157,7 @@ def fit_tiled(
     halo: float | None = None,
     client: Any = None,
     progress: bool = False,
+    spill_dir: str | os.PathLike[str] | None = None,
     **fit_options: Any,
 ) -> FitResult:
     """Fits ``source`` tile by tile on a Dask cluster and merges the tiles.
@@ -105,6 +176,10 @@ def fit_tiled(
         (and closes it afterwards).
     progress : bool
         Print one line per finished tile on stderr.
+    spill_dir : path
+        LAS/LAZ sources: where the per-tile spill files go (a temporary folder in it,
+        removed afterwards; about 24 bytes × points × 1.2 of disk). It must be on a
+        filesystem every worker sees. Default: beside the survey.
     **fit_options
         Options of :func:`primfit.fit`, applied to every tile.
 
@@ -126,7 +201,15 @@ def fit_tiled(
     try:
         if isinstance(source, (str, os.PathLike)):
             path = os.fspath(source)
-            grid, _ = _primfit.tile_grid_file(path, tile_size, halo)
+            grid, count = _primfit.tile_grid_file(path, tile_size, halo)
+            if _is_las(path):
+                spill = _spill_folder(path, spill_dir)
+                try:
+                    return _fit_split_file(
+                        client, distributed, path, grid, count, spill, fit_options, progress
+                    )
+                finally:
+                    shutil.rmtree(spill, ignore_errors=True)
             tiles = range(json.loads(grid)["nx"] * json.loads(grid)["ny"])
             futures = [
                 client.submit(_fit_file_tile, path, grid, t, fit_options, pure=False)
@@ -168,6 +251,7 @@ def main(argv: Sequence[str] | None = None) -> int:
     parser.add_argument("--halo", type=float)
     parser.add_argument("--workers", type=int, help="'local' only: workers (default one per core)")
     parser.add_argument("--memory-limit", help="'local' only: per worker, e.g. 4GiB")
+    parser.add_argument("--spill-dir", help="LAS/LAZ: where the per-tile spill files go")
     parser.add_argument("-o", "--output")
     parser.add_argument("--mesh")
     parser.add_argument("--quiet", action="store_true")
@@ -186,7 +270,12 @@ def main(argv: Sequence[str] | None = None) -> int:
         cluster, client = None, distributed.Client(a.scheduler)
     try:
         result = fit_tiled(
-            a.scene, tile_size=a.tile_size, halo=a.halo, client=client, progress=not a.quiet
+            a.scene,
+            tile_size=a.tile_size,
+            halo=a.halo,
+            client=client,
+            progress=not a.quiet,
+            spill_dir=a.spill_dir,
         )
     except (ValueError, OSError) as e:
         print(f"error: {e}", file=sys.stderr)
