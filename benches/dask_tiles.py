@@ -10,6 +10,7 @@ from __future__ import annotations
 
 import argparse
 import json
+import os
 import resource
 import time
 
@@ -34,8 +35,11 @@ def main() -> None:
     ) as cluster, distributed.Client(cluster) as client:
         grid, points = primfit._primfit.tile_grid_file(a.survey, a.tile_size, None)
         g = json.loads(grid)
+        load_start = os.getloadavg()[0]
         t0 = time.monotonic()
-        result = primfit.dask.fit_tiled(a.survey, tile_size=g["tile_size"], client=client)
+        result = primfit.dask.fit_tiled(
+            a.survey, tile_size=g["tile_size"], client=client, progress=True
+        )
         wall = time.monotonic() - t0
         peaks = client.run(_peak_rss_bytes)
     tiles = g["nx"] * g["ny"]
@@ -44,6 +48,7 @@ def main() -> None:
         "tiles": tiles, "tile_size": g["tile_size"], "halo": g["halo"], "wall_s": round(wall, 1),
         "tiles_per_s": round(tiles / wall, 4), "peak_worker_rss_mib": max(peaks.values()) // 2**20,
         "primitives": len(result), "point_to_model_mean": result.metrics["point_to_model_mean"],
+        "load_1min_start": load_start, "load_1min_end": os.getloadavg()[0],
     }))
 
 

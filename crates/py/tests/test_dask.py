@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import os
 from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
@@ -113,3 +114,17 @@ def test_bad_input_is_one_clear_error(client: Any, tmp_path: Path) -> None:
         primfit.dask.fit_tiled(cloud, tile_size=4.0, client=client, beta="no")
     with pytest.raises(OSError):
         primfit.dask.fit_tiled(tmp_path / "missing.laz", tile_size=4.0, client=client)
+
+
+def _rayon_threads_on_worker() -> str | None:
+    primfit.dask._match_worker_threads()
+    return os.environ.get("RAYON_NUM_THREADS")
+
+
+def test_a_worker_process_fits_with_its_own_threads_only() -> None:
+    distributed = require("distributed")
+    with distributed.LocalCluster(
+        n_workers=1, threads_per_worker=1, dashboard_address=":0"
+    ) as cluster, distributed.Client(cluster) as c:
+        want = os.environ.get("RAYON_NUM_THREADS", "1")  # one set by the caller is kept
+        assert c.submit(_rayon_threads_on_worker, pure=False).result() == want

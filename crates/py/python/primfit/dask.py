@@ -54,14 +54,32 @@ def _distributed() -> Any:
     return distributed
 
 
+def _match_worker_threads() -> None:
+    """In a worker process of its own: the Rust thread pool gets the worker's threads
+    (``nthreads``), not one per core, so that ``n`` workers of one thread on ``n`` cores
+    do not run ``n²`` threads. Left alone when ``RAYON_NUM_THREADS`` is set, outside a
+    worker, and in a worker that shares the caller's process."""
+    import multiprocessing
+
+    if "RAYON_NUM_THREADS" in os.environ or multiprocessing.parent_process() is None:
+        return
+    try:
+        nthreads = _distributed().get_worker().state.nthreads
+    except ValueError:
+        return
+    os.environ["RAYON_NUM_THREADS"] = str(max(1, int(nthreads)))
+
+
 def _fit_file_tile(path: str, grid: str, tile: int, options: dict[str, Any]) -> str:
     """On a worker: tile ``tile``'s points read from ``path``, fitted; the tile's JSON."""
+    _match_worker_threads()
     points = _primfit.tile_points(path, grid, tile)
     return _primfit.fit_tile(points, grid, tile, _fit_options(options))
 
 
 def _split_part(path: str, grid: str, first: int, count: int, spill: str, part: int) -> list[int]:
     """On a worker: points ``first .. first + count`` of ``path`` into spill files."""
+    _match_worker_threads()
     return _primfit.split_survey(path, grid, first, count, spill, part)
 
 
@@ -69,6 +87,7 @@ def _fit_spilled_tile(
     spill: str, parts: int, expected: int, grid: str, tile: int, options: dict[str, Any]
 ) -> str:
     """On a worker: tile ``tile`` read from its spill files, fitted; the tile's JSON."""
+    _match_worker_threads()
     points = _primfit.spilled_tile_points(spill, tile, parts)
     if len(points) != expected:
         raise OSError(
@@ -126,6 +145,7 @@ def _fit_array_tile(points: np.ndarray, grid: str, tile: int, options: dict[str,
     """On a worker: tile ``tile`` fitted from ``points`` (its haloed box); the tile's JSON.
     An array that arrived by pickle protocol 5 may lie unaligned in its buffer: copied
     to an aligned one first (the extension reads aligned float64 only)."""
+    _match_worker_threads()
     aligned = np.require(points, dtype=np.float64, requirements=["C", "A"])
     return _primfit.fit_tile(aligned, grid, tile, _fit_options(options))
 
