@@ -126,6 +126,12 @@ pub fn classify(
 
 /// The largest RMS spread of `pts` along a principal direction (scene units).
 fn spread(pts: &[Point3<f64>]) -> f64 {
+    spreads(pts)[0]
+}
+
+/// The RMS spreads of `pts` along their three principal directions, largest first
+/// (scene units): a plane segment is a strip when the middle one is small.
+pub(super) fn spreads(pts: &[Point3<f64>]) -> [f64; 3] {
     let ids: Vec<usize> = (0..pts.len()).collect();
     let m = Moments::of(pts, &ids);
     let c = m.centroid().unwrap_or_else(Point3::origin);
@@ -134,5 +140,11 @@ fn spread(pts: &[Point3<f64>]) -> f64 {
         .map(|p| (p - c) * (p - c).transpose())
         .sum::<nalgebra::Matrix3<f64>>()
         / pts.len().max(1) as f64;
-    cov.symmetric_eigenvalues().max().max(0.0).sqrt()
+    let mut e: Vec<f64> = cov
+        .symmetric_eigenvalues()
+        .iter()
+        .map(|v| v.max(0.0).sqrt())
+        .collect();
+    e.sort_by(|a, b| b.total_cmp(a));
+    [e[0], e[1], e[2]]
 }

@@ -9,6 +9,10 @@
 //! cross-section, so their normals lie roughly across its axis, which is all the
 //! cylinder fit's initial axis needs ([`super::cylinder`]).
 //!
+//! 0. A plane segment that is a strip narrower than a neighbourhood and that its plane
+//!    does not explain at full resolution is classified again from its own points: on a
+//!    subsampled cloud, a tube only a couple of samples wide looks like a noisy strip to
+//!    neighbourhoods wider than itself, and its samples pass as a plane through its axis.
 //! 1. The unassigned and clutter points are cut into connected pieces: points closer
 //!    than [`LINK_SPACINGS`] spacings are linked.
 //! 2. Each piece of at least the smallest segment is classified as a whole
@@ -27,7 +31,7 @@
 use nalgebra::Point3;
 use rayon::prelude::*;
 
-use super::classify::classify;
+use super::classify::{classify, spreads};
 use super::merge::{Part, merge_parts};
 use super::normals::{Neighbourhoods, median};
 use super::plane::Moments;
@@ -55,6 +59,9 @@ pub(super) struct Leftovers {
     pub min_points: usize,
     /// Cosine of the largest angle between the axes of merged cylinders.
     pub cos_angle: f64,
+    /// The detection's median neighbourhood radius (scene units): a segment narrower
+    /// than this was classified from neighbourhoods wider than itself.
+    pub reach: f64,
 }
 
 impl Leftovers {
@@ -62,6 +69,7 @@ impl Leftovers {
     /// sphere explains into new segments (module docs), keeping the segments and the
     /// clutter lists largest first.
     pub fn absorb(&self, points: &[Point3<f64>], detection: &mut Detection) {
+        let reclassified = self.reclassify_strips(points, &mut detection.segments);
         let mut left: Vec<usize> = detection
             .unassigned
             .iter()
@@ -75,7 +83,7 @@ impl Leftovers {
             .filter(|ids| ids.len() >= self.min_points)
             .filter_map(|ids| self.curved(points, ids))
             .collect();
-        if found.is_empty() {
+        if found.is_empty() && reclassified == 0 {
             return;
         }
         let mut taken = vec![false; points.len()];
@@ -126,6 +134,36 @@ impl Leftovers {
                 .cmp(&a.points.len())
                 .then(a.points.first().cmp(&b.points.first()))
         });
+    }
+
+    /// Re-classifies, from their own points, the plane segments that are strips
+    /// narrower than a neighbourhood ([`Self::reach`]) and that their plane does not
+    /// explain at full resolution (RMS above `t σ`): a tube thinner than the
+    /// subsampled neighbourhoods is seen by them as a noisy strip, and its sample
+    /// segment passes as a plane through its axis. Its own points, at the input's
+    /// spacing, show the tube. Returns how many became curved.
+    fn reclassify_strips(&self, points: &[Point3<f64>], segments: &mut [Segment]) -> usize {
+        let limit = self.tolerance * self.sigma;
+        let strips: Vec<usize> = (0..segments.len())
+            .into_par_iter()
+            .filter(|&k| {
+                let s = &segments[k];
+                matches!(s.model, SurfaceModel::Plane { .. })
+                    && s.rms > limit
+                    && s.points.len() >= self.min_points
+                    && spreads(&s.points.iter().map(|&i| points[i]).collect::<Vec<_>>())[1]
+                        < self.reach
+            })
+            .collect();
+        let curved: Vec<(usize, Segment)> = strips
+            .into_par_iter()
+            .filter_map(|k| Some((k, self.curved(points, segments[k].points.clone())?)))
+            .collect();
+        let n = curved.len();
+        for (k, segment) in curved {
+            segments[k] = segment;
+        }
+        n
     }
 
     /// The connected pieces of `ids` (ascending), each ascending, in order of their

@@ -345,6 +345,7 @@ pub fn detect_timed(
         spheres: options.spheres,
         min_points,
         cos_angle: angle.cos(),
+        reach: radius,
     }
     .absorb(points, &mut detection);
     clock.lap("leftovers");
