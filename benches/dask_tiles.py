@@ -47,7 +47,10 @@ def main() -> None:
         "survey": a.survey, "points": points, "workers": a.workers, "memory_limit": a.memory_limit,
         "tiles": tiles, "tile_size": g["tile_size"], "halo": g["halo"], "wall_s": round(wall, 1),
         "tiles_per_s": round(tiles / wall, 4), "peak_worker_rss_mib": max(peaks.values()) // 2**20,
-        "primitives": len(result), "point_to_model_mean": result.metrics["point_to_model_mean"],
+        "primitives": len(result),
+        "types": {t: sum(p["type"] == t for p in result.primitives) for t in {p["type"] for p in result.primitives}},
+        "point_to_model_mean": result.metrics["point_to_model_mean"],
+        "coordinator_peak_rss_mib": _peak_rss_bytes() // 2**20,
         "load_1min_start": load_start, "load_1min_end": os.getloadavg()[0],
     }))
 

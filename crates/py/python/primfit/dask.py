@@ -259,7 +259,11 @@ def _gather(distributed: Any, futures: Sequence[Any], progress: bool) -> FitResu
         if progress:
             rate = done / max(time.monotonic() - t0, 1e-9)
             print(f"tile {done}/{len(futures)} ({rate:.2f} tiles/s)", file=sys.stderr)
-    return FitResult(*_primfit.merge_tiles(docs))
+    t1 = time.monotonic()
+    result = FitResult(*_primfit.merge_tiles(docs))
+    if progress:
+        print(f"merged {len(docs)} tiles in {time.monotonic() - t1:.1f} s", file=sys.stderr)
+    return result
 
 
 def main(argv: Sequence[str] | None = None) -> int:
