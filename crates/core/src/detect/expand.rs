@@ -6,8 +6,10 @@
 //!    as they were before it, so the result does not depend on the visiting order;
 //!    passes repeat while samples join.
 //! 2. **Points.** Every other input point takes the segment of its nearest sample if it
-//!    lies within `t σ` of that segment's model (clutter: unconditionally); otherwise it
-//!    is unassigned.
+//!    lies within `t σ` of that segment's model (clutter: unconditionally); otherwise the
+//!    segment of one of its few nearest samples whose model it lies within `t σ` of (at
+//!    a junction the nearest sample may be the other surface's); otherwise it is
+//!    unassigned.
 //! 3. **Final models.** Each segment's model is refitted on all its points (planes by
 //!    moments, cylinders by LM from the sample fit, spheres afresh) and its RMS taken over
 //!    all of them.
@@ -25,6 +27,10 @@ use crate::spatial::PointIndex;
 
 /// Marks a point that is not a sample / a sample in no segment.
 const NONE: u32 = u32::MAX;
+
+/// Samples around a point that its nearest sample's segment does not explain, among
+/// which a segment that does is looked for ([`fitting_neighbour`]).
+const CREASE_SAMPLES: usize = 8;
 
 /// Most passes of fragment absorption: each reaches one neighbour further, so a segment
 /// reaches at most this many growing steps into fragments.
@@ -149,11 +155,41 @@ fn point_labels(
             }
             let part = &parts[l as usize];
             match part.model {
-                Some(m) if m.distance(&points[i]) > tolerance * part.sigma => NONE,
+                Some(m) if m.distance(&points[i]) > tolerance * part.sigma => {
+                    fitting_neighbour(&points[i], samples, parts, label, tolerance)
+                }
                 _ => l,
             }
         })
         .collect()
+}
+
+/// The segment of one of the [`CREASE_SAMPLES`] samples nearest `p` whose model lies
+/// within `t σ` of it (the nearest in σ; ties to the lower label), or [`NONE`]: near a
+/// crease or a junction the nearest sample may belong to the other surface, and the
+/// point would be left out of its own, opening a gap a voxel wide along every junction.
+fn fitting_neighbour(
+    p: &Point3<f64>,
+    samples: &Samples,
+    parts: &[Part],
+    label: &[u32],
+    tolerance: f64,
+) -> u32 {
+    let mut best: Option<(f64, u32)> = None;
+    for (s, _) in samples.index.nearest_n(p, CREASE_SAMPLES) {
+        let l = label[s as usize];
+        let Some(part) = parts.get(l as usize) else {
+            continue;
+        };
+        let Some(m) = part.model else {
+            continue;
+        };
+        let r = m.distance(p) / part.sigma.max(f64::MIN_POSITIVE);
+        if r <= tolerance && best.is_none_or(|(b, bl)| r < b || (r == b && l < bl)) {
+            best = Some((r, l));
+        }
+    }
+    best.map_or(NONE, |(_, l)| l)
 }
 
 /// Step 1 of the module docs: fragments join a neighbouring segment whose model fits,

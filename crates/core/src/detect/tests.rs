@@ -443,3 +443,48 @@ fn a_tube_two_samples_wide_is_a_cylinder_not_a_strip() {
     assert!((radius - 0.08).abs() < 0.008, "r = {radius}");
     assert!(d.segments.iter().all(|s| s.rms < 0.01), "{summary:?}");
 }
+
+#[test]
+fn points_at_a_junction_join_their_own_surface_when_the_nearest_sample_is_the_others() {
+    // A floor and a wall meeting at a right angle, subsampled to voxels far wider than
+    // the point spacing: along the junction a point's nearest sample is often on the
+    // other surface, yet the point lies on its own and must join it (no gap a voxel
+    // wide along every junction).
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let mut scene = Labelled::new();
+    let (x, y, z) = (Vector3::x(), Vector3::y(), Vector3::z());
+    let all = |_: &Point3<f64>| true;
+    let o = Point3::origin();
+    scene.rect(&mut rng, (o, x * 4.0, y * 3.0), 4000.0, 0.002, &all, 0);
+    scene.rect(&mut rng, (o, x * 4.0, z * 2.0), 4000.0, 0.002, &all, 1);
+    let options = DetectOptions {
+        max_samples: Some(1_500),
+        ..Default::default()
+    };
+    let detection = scene.detect(&options);
+    let voxel = detection.voxel.expect("subsampled");
+    assert_eq!(detection.segments.len(), 2, "{}", summary(&detection));
+    let mut own = vec![None; scene.points.len()];
+    for s in &detection.segments {
+        let (face, _) = scene.majority(&s.points);
+        for &i in &s.points {
+            own[i] = Some(face);
+        }
+    }
+    // Points within one voxel of the junction (y = 0 on the floor, z = 0 on the wall).
+    let near: Vec<usize> = (0..scene.points.len())
+        .filter(|&i| scene.points[i].y.max(scene.points[i].z) < voxel)
+        .collect();
+    let joined = near
+        .iter()
+        .filter(|&&i| own[i] == Some(scene.label[i]))
+        .count();
+    let left_out = near.iter().filter(|&&i| own[i].is_none()).count();
+    // Points within t σ of both planes (a band a few mm wide) may join either.
+    assert!(
+        left_out * 50 < near.len() && joined * 100 > 95 * near.len(),
+        "of {} points near the junction {joined} joined their own surface, {left_out} none \
+         (voxel {voxel})",
+        near.len()
+    );
+}
