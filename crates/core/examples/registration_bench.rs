@@ -7,6 +7,7 @@
 //! cargo run --release --example registration_bench -- [--levels 0.5,0.8,0.9,0.95]
 //!     [--seeds 20] [--inliers 100] [--translation T] [--model mesh.ply] [--scenes DIR]
 //!     [--rotation-only] [--scale LO,HI] [--partial] [--clutter] [--absent]
+//!     [--pair-hypotheses N] [--accept P] [--first-seed S] [tuning flags]
 //! ```
 //!
 //! `--partial`: the object is seen by a depth sensor from one random viewpoint
@@ -159,6 +160,8 @@ fn options(
         max_rounds: parsed_or(get("--max-rounds"), d.max_rounds, "count"),
         primitive_weight: get("--primitive-weight").map(|s| s.parse().expect("weight")),
         search_support: parsed_or(get("--search-support"), d.search_support, "points"),
+        pair_hypotheses: parsed_or(get("--pair-hypotheses"), d.pair_hypotheses, "count"),
+        accept_without_search: parsed_or(get("--accept"), d.accept_without_search, "share"),
         ..d
     }
 }

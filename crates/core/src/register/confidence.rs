@@ -12,10 +12,18 @@
 //! (`z = ±√G`, `G = 2[k ln(k/(n p₀)) + s ln(s/(n(1 − p₀)))]`, k near and s shell
 //! points): about N(0, 1) under clutter alone, large for a real object.
 //!
+//! **Visibility.** With each point's sensor origin, a point near the posed surface that
+//! the posed object itself hides from its sensor (a point on its far side, or in a fold
+//! its near side covers) cannot have been seen there: it counts in the shell. A partial
+//! view is explained by the model's seen side only, and a wrong pose that explains the
+//! points by its unseen side is not rewarded for it; the model's unseen side is never
+//! punished for having no points.
+//!
 //! **Calibration.** The existence is a logistic function of `z` and of its lead over
-//! the best other symmetry try (an object that another pose explains nearly as well
-//! is ambiguous), whose coefficients were fitted on benchmark scenes, right and wrong poses and scenes without the object
-//! (`benches/registration_compare.py`, table in `benches/REGISTRATION.md`), capped at
+//! the best other answer of the final choice (an object that another pose explains
+//! nearly as well is ambiguous), whose coefficients were fitted on benchmark scenes,
+//! right and wrong poses and scenes without the object (`benches/calibrate_confidence.py`,
+//! answers and reliability table in `docs/registration_confidence.md`), capped at
 //! [`MAX_EXISTENCE`]: no finite calibration set supports certainty.
 
 use nalgebra::Point3;
@@ -26,16 +34,16 @@ use crate::Primitive;
 pub const SHELL_FACTOR: f64 = 4.0;
 /// Logistic calibration of the existence: `p = σ(CALIBRATION_BIAS + CALIBRATION_MARGIN
 /// · z + CALIBRATION_GAP · gap)`, `z` the margin over clutter and `gap = min(z − z₂,
-/// GAP_CAP)` its lead over the best other symmetry try (`z₂` at least 0, the margin
-/// of clutter alone). Fitted (L2-regularised logistic
-/// regression, λ = 1) on 43 benchmark answers, 18 right and 25 wrong, seeds 100–103 of
-/// whole-surface, partial-view and object-free scenes of the bunny and the procedural
-/// object (docs/registration_confidence.md).
-pub const CALIBRATION_BIAS: f64 = -8.9;
+/// GAP_CAP)` its lead over the best other answer (`z₂` at least 0, the margin
+/// of clutter alone). Fitted (L2-regularised logistic regression, λ = 1) on 56
+/// benchmark answers, 39 right and 17 wrong, seeds 100–103 of whole-surface,
+/// partial-view, cluttered and object-free scenes of the bunny and the procedural object
+/// (`benches/calibrate_confidence.py`, docs/registration_confidence.md).
+pub const CALIBRATION_BIAS: f64 = -4.07;
 /// See [`CALIBRATION_BIAS`] (per unit of `z`).
-pub const CALIBRATION_MARGIN: f64 = 0.415;
+pub const CALIBRATION_MARGIN: f64 = 0.361;
 /// See [`CALIBRATION_BIAS`] (per unit of the gap).
-pub const CALIBRATION_GAP: f64 = 1.54;
+pub const CALIBRATION_GAP: f64 = 0.438;
 /// Largest lead over the runner-up that counts (a runner-up far behind is as good as
 /// none).
 pub const GAP_CAP: f64 = 10.0;
@@ -53,23 +61,47 @@ pub struct Support {
 }
 
 /// Counts the points of `cloud` near `object`'s surface and in the shell around it, for
-/// the inlier distance `inlier` (scene units).
-pub fn support(cloud: &[Point3<f64>], object: &Primitive, inlier: f64) -> Support {
+/// the inlier distance `inlier` (scene units). With `sensors` (each point's sensor
+/// origin, parallel to `cloud`), a point near the surface that the posed object itself
+/// hides from its sensor — the ray from the sensor meets the object more than
+/// [`SHELL_FACTOR`] inlier distances before the point: a point on the far side, or in a
+/// fold the near side covers — cannot have been seen there and counts in the shell.
+/// Under clutter alone this only lowers the near count (a conservative null); a right
+/// pose keeps its points, a wrong one that explains them by its unseen side loses them.
+pub fn support(
+    cloud: &[Point3<f64>],
+    sensors: Option<&[Point3<f64>]>,
+    object: &Primitive,
+    inlier: f64,
+) -> Support {
     let reach = SHELL_FACTOR * inlier;
     let (centre, radius) = (object.center(), object.bounding_radius());
     let mut counts = Support { near: 0, shell: 0 };
-    for y in cloud {
+    for (i, y) in cloud.iter().enumerate() {
         if (y - centre).norm() > radius + reach {
             continue;
         }
         let d = object.distance(y);
-        if d <= inlier {
+        if d <= inlier && !sensors.is_some_and(|s| hidden(object, &s[i], y, reach)) {
             counts.near += 1;
         } else if d <= reach {
             counts.shell += 1;
         }
     }
     counts
+}
+
+/// Whether the posed `object` blocks the ray from `sensor` to `point` more than
+/// `tolerance` before the point (scene units).
+fn hidden(object: &Primitive, sensor: &Point3<f64>, point: &Point3<f64>, tolerance: f64) -> bool {
+    let ray = point - sensor;
+    let range = ray.norm();
+    if range <= tolerance {
+        return false;
+    }
+    object
+        .first_hit(sensor, &(ray / range))
+        .is_some_and(|hit| hit.depth < range - tolerance)
 }
 
 /// The signed root of the binomial log-likelihood ratio of `support` against clutter
@@ -94,7 +126,7 @@ pub fn margin(support: Support) -> f64 {
 }
 
 /// The calibrated probability that an object with margin `z` over clutter, whose best
-/// other symmetry try has margin `runner_up` (−∞: none), is really there at that pose
+/// other answer has margin `runner_up` (−∞: none), is really there at that pose
 /// (module documentation), in `[0, MAX_EXISTENCE]`.
 pub fn existence(z: f64, runner_up: f64) -> f64 {
     // Clutter alone gives a margin of about 0: no runner-up is worse than that.
@@ -126,7 +158,7 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let sphere = Primitive::new(Shape::Sphere { diameter: 1.0 }, Pose::identity());
         let mut cloud = uniform(4000, 1.0, &mut rng);
-        let clutter = margin(support(&cloud, &sphere, 0.01));
+        let clutter = margin(support(&cloud, None, &sphere, 0.01));
         assert!(clutter.abs() < 3.5, "{clutter}");
         assert!(existence(clutter, f64::NEG_INFINITY) < 0.1);
         // 100 points on the sphere.
@@ -134,12 +166,46 @@ mod tests {
             let v = Vector3::from_fn(|_, _| rng.random::<f64>() - 0.5);
             Point3::from(v.normalize() * 0.5)
         }));
-        let object = margin(support(&cloud, &sphere, 0.01));
+        let object = margin(support(&cloud, None, &sphere, 0.01));
         assert!(object > 10.0, "{object}");
         let p = existence(object, f64::NEG_INFINITY);
         assert!(p > 0.9 && p <= MAX_EXISTENCE);
         // A runner-up as good as the best halves the confidence at most to its share.
         assert!(existence(object, object) < p);
+    }
+
+    #[test]
+    fn points_the_object_hides_from_their_sensor_do_not_support_it() {
+        // A sphere of radius 0.5 seen from +z: 50 points on its near cap and 50 on its
+        // far cap, all within the inlier distance of the surface.
+        let sphere = Primitive::new(Shape::Sphere { diameter: 1.0 }, Pose::identity());
+        let eye = Point3::new(0.0, 0.0, 5.0);
+        let cap = |sign: f64, k: usize| {
+            let a = k as f64 * 0.12;
+            Point3::new(0.3 * a.cos(), 0.3 * a.sin(), sign * 0.4)
+        };
+        let cloud: Vec<Point3<f64>> = (0..50)
+            .map(|k| cap(1.0, k))
+            .chain((0..50).map(|k| cap(-1.0, k)))
+            .collect();
+        let sensors = vec![eye; cloud.len()];
+        let blind = support(&cloud, None, &sphere, 0.01);
+        assert_eq!(
+            blind,
+            Support {
+                near: 100,
+                shell: 0
+            }
+        );
+        let seen = support(&cloud, Some(&sensors), &sphere, 0.01);
+        assert_eq!(
+            seen,
+            Support {
+                near: 50,
+                shell: 50
+            }
+        );
+        assert!(margin(seen) < margin(blind));
     }
 
     #[test]

@@ -50,12 +50,23 @@
 //! filter stops when the best pose has been stable for
 //! [`RegisterOptions::settle_rounds`] rounds at the final kernel.
 //!
-//! The best particle and the best of every other basin (or, where a basin is empty, the
-//! best particle's flip) are then settled by trimmed ICP and measured; the best is
-//! refined by trimmed ICP against the exact mesh surface (`icp.rs`), so the
+//! **Point-pair hypotheses.** On a partial view the filter's search over rotations can
+//! settle in a wrong basin whose surface also lies along the seen side. With translation
+//! search, each seen surface patch also votes directly for the poses that put a model
+//! patch on it (point-pair features, `ppf.rs`); the
+//! [`RegisterOptions::pair_hypotheses`] poses with the most votes are tries of the final
+//! choice. They are settled first: when the best of them is already sure
+//! ([`RegisterOptions::accept_without_search`]), the filter does not run.
+//!
+//! **Final choice** (`choice.rs`). The point-pair hypotheses, the best particle and the
+//! best of every other basin (or, where a basin is empty, the best particle's flip) are
+//! settled by ICP (point-to-surface Gauss–Newton steps, `icp.rs`) and measured; the
+//! best is refined against the exact mesh surface down to the inlier distance, so the
 //! answer is precise, not just particle-close. Its existence is a calibrated
 //! probability of the margin by which its pose beats the outlier-only explanation
-//! around its surface ([`confidence`]); an object below
+//! around its surface, and of its lead over the best other answer ([`confidence`]; with
+//! sensor origins, points the posed object would hide from their sensor do not count
+//! for it); an object below
 //! [`RegisterOptions::min_confidence`] is not reported. Several objects are found one
 //! after another, each search conditioned on those already found (they join the
 //! background), until a new one falls below `min_confidence`
@@ -70,8 +81,10 @@ pub mod confidence;
 mod geometry;
 mod icp;
 mod particle_filter;
+mod ppf;
 mod vote;
 
+mod choice;
 mod options;
 mod report;
 
@@ -88,7 +101,8 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::atlas::{MeshShape, Shape};
 use crate::progress::Progress;
-use crate::{Error, PointCloud, Pose, Primitive, Result};
+use crate::{Error, PointCloud, Pose, Result};
+use choice::Unexplained;
 use geometry::DistanceGrid;
 use particle_filter::{Context, FilterResult};
 
@@ -246,11 +260,19 @@ pub fn register(
     let mut objects: Vec<FoundObject> = Vec::new();
     // The points no object found so far explains: each new object's margin is measured
     // on them, so a second copy of a found object has no support.
-    let mut unexplained = cloud.points.clone();
+    let mut unexplained = Unexplained::all(cloud);
+    let pair_starts = pair_hypotheses(&context, cloud, mesh);
     for _ in 0..wanted {
         let found: Vec<Pose> = objects.iter().map(|o| o.primitive.pose).collect();
-        let filtered = context.run(&found, &mut rng, progress)?;
-        let object = settle_object(&context, cloud, &unexplained, mesh, &flips, filtered);
+        let object = find_object(
+            &context,
+            cloud,
+            &unexplained,
+            (mesh, &flips),
+            &pair_starts,
+            (&found, &mut rng),
+            progress,
+        )?;
         if object.existence < options.min_confidence {
             if options.count.is_none() {
                 break;
@@ -259,7 +281,7 @@ pub fn register(
             continue;
         }
         let inlier = options.inlier_distance * size * object.primitive.pose.scale;
-        unexplained.retain(|y| object.primitive.distance(y) > inlier);
+        unexplained.remove_near(&object.primitive, inlier);
         objects.push(object);
     }
     progress.finish();
@@ -270,151 +292,87 @@ pub fn register(
     })
 }
 
-/// The object the filter's answer `filtered` stands for: each of its symmetry tries
-/// ([`symmetry_tries`]) refined by trimmed ICP against the exact surface
-/// ([`refine_object`]), the one with the largest margin over the outlier-only
-/// explanation of the points `unexplained` by the objects found before kept
-/// ([`confidence`]), with its calibrated existence (which also weighs how close the
-/// best other try came).
-fn settle_object(
+/// The next object: the point-pair hypotheses `pair_starts`, settled by ICP
+/// (`choice.rs`), are accepted as they are when the best of them already reaches
+/// [`RegisterOptions::accept_without_search`]; otherwise the particle filter searches
+/// (conditioned on the objects `found`) and its answer's symmetry tries join them in
+/// the final choice.
+fn find_object(
     context: &Context,
     cloud: &PointCloud,
-    unexplained: &[Point3<f64>],
-    mesh: &MeshShape,
-    flips: &[Pose],
-    filtered: FilterResult,
-) -> FoundObject {
+    unexplained: &Unexplained,
+    (mesh, flips): (&MeshShape, &[Pose]),
+    pair_starts: &[Pose],
+    (found, rng): (&[Pose], &mut ChaCha8Rng),
+    progress: &dyn Progress,
+) -> Result<FoundObject> {
     let options = context.options;
-    let scale = filtered.pose.scale;
-    let kernel = options.kernel_end * context.size * scale;
-    let tries = symmetry_tries(context, cloud, mesh, flips, &filtered);
-    let settled: Vec<(icp::IcpResult, f64)> = tries
-        .iter()
-        .map(|t| {
-            let refined = refine_object(context, cloud, mesh, *t, kernel, scale);
-            let margin = margin_of(context, unexplained, &refined.pose);
-            (refined, margin)
-        })
-        .collect();
-    let pick = (0..settled.len())
-        .max_by(|&a, &b| settled[a].1.total_cmp(&settled[b].1).then(b.cmp(&a)))
-        .unwrap_or(0);
-    let chosen = settled[pick].0.pose;
-    let runner_up = (0..settled.len())
-        .filter(|&k| !same_pose(context, &chosen, &settled[k].0.pose))
-        .map(|k| settled[k].1)
-        .fold(f64::NEG_INFINITY, f64::max);
-    let (refined, margin) = settled.into_iter().nth(pick).expect("one try at least");
-    FoundObject {
-        primitive: Primitive::new(context.shape.clone(), refined.pose),
-        existence: confidence::existence(margin, runner_up),
-        margin,
-        runner_up_margin: runner_up,
-        inlier_share: refined.inliers.len() as f64 / cloud.len() as f64,
-        rms: refined.rms,
-        filter_pose: filtered.pose,
-        rounds: filtered.rounds,
+    let mut tries = choice::settle_all(context, cloud, unexplained, mesh, pair_starts, 1.0);
+    if let Some(answer) = choice::choose(context, &tries)
+        && answer.existence >= options.accept_without_search
+    {
+        progress.advance(options.max_rounds as u64);
+        let start = tries[answer.pick].start;
+        return Ok(choice::found_object(
+            cloud,
+            tries,
+            answer,
+            start,
+            Vec::new(),
+            context,
+        ));
     }
+    let filtered = context.run(found, rng, progress)?;
+    let scale = filtered.pose.scale;
+    let starts = symmetry_starts(flips, &filtered);
+    tries.extend(choice::settle_all(
+        context,
+        cloud,
+        unexplained,
+        mesh,
+        &starts,
+        scale,
+    ));
+    let answer = choice::choose(context, &tries).expect("the filter's answer is a try");
+    Ok(choice::found_object(
+        cloud,
+        tries,
+        answer,
+        filtered.pose,
+        filtered.rounds,
+        context,
+    ))
 }
 
-/// Whether two poses are the same answer: rotations within [`SAME_ROTATION_DEG`] and
-/// translations within the inlier distance × [`confidence::SHELL_FACTOR`].
-fn same_pose(context: &Context, a: &Pose, b: &Pose) -> bool {
-    let reach = confidence::SHELL_FACTOR * context.options.inlier_distance * context.size;
-    a.rotation.angle_to(&b.rotation) < SAME_ROTATION_DEG.to_radians()
-        && (a.translation - b.translation).norm() < reach * a.scale
-}
-
-/// Rotations closer than this (degrees) are one answer (see [`same_pose`]).
-const SAME_ROTATION_DEG: f64 = 5.0;
-
-/// The margin of the mesh at `pose` over the outlier-only explanation of `points`
-/// ([`confidence::margin`]) at the inlier distance.
-fn margin_of(context: &Context, points: &[Point3<f64>], pose: &Pose) -> f64 {
-    let primitive = Primitive::new(context.shape.clone(), *pose);
-    let inlier = context.options.inlier_distance * context.size * pose.scale;
-    confidence::margin(confidence::support(points, &primitive, inlier))
+/// The point-pair-feature hypotheses of the object's pose in `cloud` (`ppf.rs`), with
+/// translation search and no scale search (the features are not scale-invariant);
+/// none otherwise or with [`RegisterOptions::pair_hypotheses`] = 0.
+fn pair_hypotheses(context: &Context, cloud: &PointCloud, mesh: &MeshShape) -> Vec<Pose> {
+    let options = context.options;
+    if !options.translation || options.scale.is_some() || options.pair_hypotheses == 0 {
+        return Vec::new();
+    }
+    ppf::PpfModel::new(mesh, context.size).hypotheses(
+        &cloud.points,
+        cloud.sensors.as_deref(),
+        options.pair_hypotheses,
+    )
 }
 
 /// Approximate symmetries: the filter's best pose turned by π about each principal
 /// axis of the model (through the rotation pivot) — or where the filter kept a particle
-/// in that basin, its best there — each polished by ICP from the first kernel down to
-/// the last (with [`RegisterOptions::icp`]); the first is the best pose itself.
-fn symmetry_tries(
-    context: &Context,
-    cloud: &PointCloud,
-    mesh: &MeshShape,
-    flips: &[Pose],
-    filtered: &FilterResult,
-) -> Vec<Pose> {
-    let options = context.options;
-    let (size, scale) = (context.size, filtered.pose.scale);
-    let freedom = context.freedom();
-    let settle = icp::IcpOptions {
-        start_distance: options.kernel_start * size * scale,
-        min_distance: options.kernel_end * size * scale,
-        shrink: 0.8,
-        max_iterations: 15,
-        tolerance: 1e-6 * size * scale,
-        scale_range: options.scale,
-    };
+/// in that basin, its best there; the first is the best pose itself.
+fn symmetry_starts(flips: &[Pose], filtered: &FilterResult) -> Vec<Pose> {
     flips
         .iter()
         .enumerate()
         .map(|(k, f)| {
-            let p = match k
+            let basin = k
                 .checked_sub(1)
-                .and_then(|b| filtered.basins.get(b).copied().flatten())
-            {
-                Some(b) => b,
-                None => filtered.pose.compose(f),
-            };
-            if options.icp {
-                icp::refine(mesh, &context.grid, &cloud.points, p, freedom, &settle).pose
-            } else {
-                p
-            }
+                .and_then(|b| filtered.basins.get(b).copied());
+            basin.flatten().unwrap_or_else(|| filtered.pose.compose(f))
         })
         .collect()
-}
-
-/// `chosen` refined by trimmed ICP against the exact mesh surface, from the kernel
-/// `kernel` down to the inlier distance (at the pose's `scale`); without
-/// [`RegisterOptions::icp`], no steps: only its inliers and RMS.
-fn refine_object(
-    context: &Context,
-    cloud: &PointCloud,
-    mesh: &MeshShape,
-    chosen: Pose,
-    kernel: f64,
-    scale: f64,
-) -> icp::IcpResult {
-    let options = context.options;
-    let size = context.size;
-    let largest_scale = options.scale.map_or(1.0, |s| s.1);
-    let inlier_distance = options.inlier_distance * size;
-    icp::refine(
-        mesh,
-        &context.grid,
-        &cloud.points,
-        chosen,
-        if options.icp {
-            context.freedom()
-        } else {
-            icp::Freedom {
-                translation: false,
-                scale: false,
-            }
-        },
-        &icp::IcpOptions {
-            start_distance: kernel,
-            min_distance: inlier_distance * scale,
-            shrink: 0.8,
-            max_iterations: if options.icp { 60 } else { 0 },
-            tolerance: 1e-6 * size * largest_scale,
-            scale_range: options.scale,
-        },
-    )
 }
 
 /// The identity and the turns by π about the three principal axes of `samples` (local

@@ -49,6 +49,14 @@ pub struct RegisterOptions {
     pub vote_bin: f64,
     /// Spacing of the model samples that vote, fraction of the model size.
     pub vote_spacing: f64,
+    /// With translation search and no scale: pose hypotheses from point-pair features
+    /// (`ppf.rs`) that join the filter's answer and its symmetry tries in the final
+    /// choice (each settled by ICP); 0 = none.
+    pub pair_hypotheses: usize,
+    /// Existence (0‥1) at which the best point-pair hypothesis, settled by ICP, is
+    /// accepted without the particle filter's search; above 1: always search.
+    /// Calibrated with the existence (docs/registration_confidence.md).
+    pub accept_without_search: f64,
     /// Particles of later rounds.
     pub particles: usize,
     /// Round limit per object.
@@ -123,6 +131,9 @@ pub const MAX_PARTICLES: usize = 100_000;
 /// The most filter rounds per object (the default is 40; the filter settles in 10–30).
 pub const MAX_ROUNDS: usize = 10_000;
 
+/// The most point-pair hypotheses (the default is 8): each is one ICP refinement.
+pub const MAX_PAIR_HYPOTHESES: usize = 1_000;
+
 impl Default for RegisterOptions {
     fn default() -> Self {
         RegisterOptions {
@@ -138,6 +149,8 @@ impl Default for RegisterOptions {
             vote_keep: 400,
             vote_bin: 0.08,
             vote_spacing: 0.04,
+            pair_hypotheses: 8,
+            accept_without_search: 0.9,
             particles: 200,
             max_rounds: 40,
             kernel_start: 0.08,
@@ -197,6 +210,8 @@ impl RegisterOptions {
         check::non_negative("min_support", self.min_support)?;
         check::non_negative("search_support", self.search_support)?;
         check::non_negative("prior_margin", self.prior_margin)?;
+        check::non_negative("accept_without_search", self.accept_without_search)?;
+        check::at_most("pair_hypotheses", self.pair_hypotheses, MAX_PAIR_HYPOTHESES)?;
         for (name, k) in [
             ("initial_particles", self.initial_particles),
             ("particles", self.particles),

@@ -20,17 +20,18 @@ pub struct FoundObject {
     /// surface: the signed root of a log-likelihood ratio, about N(0, 1) for clutter
     /// ([`margin`](super::confidence::margin)).
     pub margin: f64,
-    /// The margin of the best other symmetry try (the pose turned by π about a principal
-    /// axis, refined): how nearly another pose explains the points as well
-    /// (−∞ when there was none).
+    /// The margin of the best other answer among the tries of the final choice (the
+    /// pose turned by π about a principal axis, the point-pair hypotheses, refined): how
+    /// nearly another pose explains the points as well (−∞ when there was none).
     pub runner_up_margin: f64,
     /// Share of all cloud points within the inlier distance of its surface (0‥1).
     pub inlier_share: f64,
     /// RMS surface distance of those inliers (scene units).
     pub rms: f64,
-    /// The filter's pose before ICP.
+    /// The search's pose before ICP: the particle filter's answer, or the point-pair
+    /// hypothesis accepted without the filter's search.
     pub filter_pose: Pose,
-    /// Per-round statistics of its search.
+    /// Per-round statistics of the filter's search (empty when it did not run).
     pub rounds: Vec<RoundStats>,
 }
 
