@@ -11,7 +11,8 @@ wrong). Each answer is right when its rotation error is < 5° and its translatio
 L2-regularised logistic regression (λ = 1, Newton's method, no intercept penalty).
 
     python3 benches/calibrate_confidence.py [--seeds 4] [--first-seed 100]
-        [--out docs/registration_confidence_runs.md] [--runs FILE.jsonl]
+        [--out FILE.md] [--runs FILE.jsonl] [--save-runs FILE.jsonl]
+        [--bench-args '--accept 0.5']
 
 Prints the coefficients, the answers table and a reliability table of the fitted
 existence (markdown). ``--runs`` reuses the answers of an earlier run instead of
@@ -45,12 +46,12 @@ SCENES = [
 ]
 
 
-def run_scenes(seeds, first_seed):
+def run_scenes(seeds, first_seed, extra):
     """Every calibration answer: dicts of the bench's JSON plus ``scenes``."""
     answers = []
     for label, levels, flags in SCENES:
         cmd = [BENCH, "--levels", levels, "--seeds", str(seeds),
-               "--first-seed", str(first_seed)] + flags
+               "--first-seed", str(first_seed)] + flags + extra
         print(f"{label}: {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
         out = subprocess.run(cmd, check=True, capture_output=True, text=True).stdout
         for line in out.splitlines():
@@ -143,6 +144,8 @@ def main():
     ap.add_argument("--out")
     ap.add_argument("--runs", help="answers of an earlier run (JSON lines) to refit")
     ap.add_argument("--save-runs", help="write the answers here (JSON lines)")
+    ap.add_argument("--bench-args", default="",
+                    help="more registration_bench flags, e.g. '--accept 0.5'")
     args = ap.parse_args()
     if args.runs:
         with open(args.runs) as f:
@@ -151,7 +154,7 @@ def main():
         if not os.path.exists(BENCH):
             subprocess.run(["cargo", "build", "--release", "--example", "registration_bench"],
                            cwd=ROOT, check=True)
-        answers = run_scenes(args.seeds, args.first_seed)
+        answers = run_scenes(args.seeds, args.first_seed, args.bench_args.split())
     if args.save_runs:
         with open(args.save_runs, "w") as f:
             for a in answers:

@@ -103,6 +103,13 @@ fn partial_view_at_80_percent_outliers() {
 }
 
 #[test]
+fn partial_view_at_90_percent_outliers() {
+    // 200 object points among 2 000: where the particle filter alone found 2 of 5
+    // seeds (the point-pair hypotheses and point-to-surface ICP find them).
+    check(1800, false, &[1, 2]);
+}
+
+#[test]
 fn partial_view_with_a_plane_and_other_objects_at_80_percent_outliers() {
     check(800, true, &[1]);
 }

@@ -54,8 +54,11 @@ pub struct RegisterOptions {
     /// choice (each settled by ICP); 0 = none.
     pub pair_hypotheses: usize,
     /// Existence (0‥1) at which the best point-pair hypothesis, settled by ICP, is
-    /// accepted without the particle filter's search; above 1: always search.
-    /// Calibrated with the existence (docs/registration_confidence.md).
+    /// accepted without the particle filter's search; above 1: always search. The
+    /// default is [`min_confidence`](Self::min_confidence)'s: an answer that would be
+    /// reported anyway is not searched further. On the calibration scenes this kept every
+    /// right answer right and cut the median time from 1.6 to 0.45 s
+    /// (docs/registration_confidence.md).
     pub accept_without_search: f64,
     /// Particles of later rounds.
     pub particles: usize,
@@ -150,7 +153,7 @@ impl Default for RegisterOptions {
             vote_bin: 0.08,
             vote_spacing: 0.04,
             pair_hypotheses: 8,
-            accept_without_search: 0.9,
+            accept_without_search: 0.5,
             particles: 200,
             max_rounds: 40,
             kernel_start: 0.08,

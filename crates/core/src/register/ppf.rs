@@ -246,14 +246,33 @@ fn feature_key(
     }
     let u = d / length;
     let a = ANGLE_BINS;
-    let bin = |c: f64| ((c.clamp(-1.0, 1.0).acos() / PI * a as f64) as u32).min(a - 1);
     let distance = (length / step) as u32;
     Some(((distance * a + bin(n1.dot(&u))) * a + bin(n2.dot(&u))) * a + bin(n1.dot(n2)))
 }
 
-/// The bin of the angle `theta` (radians, any turn) over [−π, π).
+/// The bin of the angle whose cosine is `c` among [`ANGLE_BINS`] equal bins over
+/// [0, π]: the number of bin edges `cos(kπ/ANGLE_BINS)` above `c` (no `acos`: this runs
+/// for every scene pair).
+fn bin(c: f64) -> u32 {
+    ANGLE_EDGES.partition_point(|&edge| edge > c) as u32
+}
+
+/// `cos(kπ/ANGLE_BINS)` for k = 1 … ANGLE_BINS − 1, decreasing.
+static ANGLE_EDGES: std::sync::LazyLock<Vec<f64>> = std::sync::LazyLock::new(|| {
+    (1..ANGLE_BINS)
+        .map(|k| (k as f64 * PI / ANGLE_BINS as f64).cos())
+        .collect()
+});
+
+/// The bin of the angle `theta` (radians, in (−3π, 3π)) over [−π, π).
 fn theta_bin(theta: f64) -> usize {
-    let wrapped = (theta + PI).rem_euclid(2.0 * PI);
+    let mut wrapped = theta + PI;
+    while wrapped < 0.0 {
+        wrapped += 2.0 * PI;
+    }
+    while wrapped >= 2.0 * PI {
+        wrapped -= 2.0 * PI;
+    }
     ((wrapped / (2.0 * PI) * THETA_BINS as f64) as usize).min(THETA_BINS - 1)
 }
 
@@ -422,6 +441,13 @@ mod tests {
     fn theta_bins_wrap_and_features_reject_far_pairs() {
         assert_eq!(theta_bin(PI), theta_bin(-PI));
         assert_eq!(theta_bin(3.0 * PI - 1e-9), THETA_BINS - 1);
+        // The bins of the cosine agree with those of the angle.
+        for k in 0..=1000 {
+            let angle = k as f64 / 1000.0 * PI;
+            let by_angle = ((angle / PI * ANGLE_BINS as f64) as u32).min(ANGLE_BINS - 1);
+            let edge = (angle / PI * ANGLE_BINS as f64 - by_angle as f64).abs() < 1e-9;
+            assert!(edge || bin(angle.cos()) == by_angle, "{angle}");
+        }
         let n = Vector3::z();
         assert!(feature_key(&Vector3::new(2.0, 0.0, 0.0), &n, &n, 0.1, 1.0).is_none());
         assert!(feature_key(&Vector3::zeros(), &n, &n, 0.1, 1.0).is_none());
