@@ -12,7 +12,11 @@ L2-regularised logistic regression (λ = 1, Newton's method, no intercept penalt
 
     python3 benches/calibrate_confidence.py [--seeds 4] [--first-seed 100]
         [--out FILE.md] [--runs FILE.jsonl] [--save-runs FILE.jsonl]
-        [--bench-args '--accept 0.5']
+        [--bench-args='--accept 0.5'] [--sensors-only]
+
+The existence has one calibration for clouds with sensor origins (fit it with
+``--sensors-only``: the partial views) and one for clouds without (fit it with
+``--bench-args=--no-sensors``, every scene with its origins dropped).
 
 Prints the coefficients, the answers table and a reliability table of the fitted
 existence (markdown). ``--runs`` reuses the answers of an earlier run instead of
@@ -46,10 +50,12 @@ SCENES = [
 ]
 
 
-def run_scenes(seeds, first_seed, extra):
+def run_scenes(seeds, first_seed, extra, sensors_only):
     """Every calibration answer: dicts of the bench's JSON plus ``scenes``."""
     answers = []
     for label, levels, flags in SCENES:
+        if sensors_only and "--partial" not in flags:
+            continue  # whole-surface scenes carry no sensor origins
         cmd = [BENCH, "--levels", levels, "--seeds", str(seeds),
                "--first-seed", str(first_seed)] + flags + extra
         print(f"{label}: {' '.join(cmd[1:])}", file=sys.stderr, flush=True)
@@ -144,6 +150,8 @@ def main():
     ap.add_argument("--out")
     ap.add_argument("--runs", help="answers of an earlier run (JSON lines) to refit")
     ap.add_argument("--save-runs", help="write the answers here (JSON lines)")
+    ap.add_argument("--sensors-only", action="store_true",
+                    help="only the scenes whose points carry sensor origins (partial views)")
     ap.add_argument("--bench-args", default="",
                     help="more registration_bench flags, e.g. '--accept 0.5'")
     args = ap.parse_args()
@@ -154,7 +162,8 @@ def main():
         if not os.path.exists(BENCH):
             subprocess.run(["cargo", "build", "--release", "--example", "registration_bench"],
                            cwd=ROOT, check=True)
-        answers = run_scenes(args.seeds, args.first_seed, args.bench_args.split())
+        answers = run_scenes(args.seeds, args.first_seed, args.bench_args.split(),
+                             args.sensors_only)
     if args.save_runs:
         with open(args.save_runs, "w") as f:
             for a in answers:

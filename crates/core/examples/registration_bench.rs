@@ -7,7 +7,7 @@
 //! cargo run --release --example registration_bench -- [--levels 0.5,0.8,0.9,0.95]
 //!     [--seeds 20] [--inliers 100] [--translation T] [--model mesh.ply] [--scenes DIR]
 //!     [--rotation-only] [--scale LO,HI] [--partial] [--clutter] [--absent]
-//!     [--pair-hypotheses N] [--accept P] [--first-seed S] [tuning flags]
+//!     [--pair-hypotheses N] [--accept P] [--first-seed S] [--no-sensors] [tuning flags]
 //! ```
 //!
 //! `--partial`: the object is seen by a depth sensor from one random viewpoint
@@ -84,7 +84,11 @@ fn main() {
                 absent: args.iter().any(|a| a == "--absent"),
             };
             let translation = if rotation_only { 0.0 } else { rel_t * size };
-            let scene = make_scene(&mesh, kind, inliers, outliers, translation, scale, seed);
+            let mut scene = make_scene(&mesh, kind, inliers, outliers, translation, scale, seed);
+            if args.iter().any(|a| a == "--no-sensors") {
+                // As most real scans arrive: no per-point sensor origins.
+                scene.cloud.sensors = None;
+            }
             let truth = scene.truth.first().map_or(Pose::identity(), |t| t.pose);
             if let Some(dir) = &scenes {
                 write_scene(dir, &format!("scene_{level}_{seed}"), &scene, &truth, size);

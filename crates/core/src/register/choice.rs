@@ -95,8 +95,17 @@ pub(super) struct Answer {
     pub existence: f64,
 }
 
-/// The best of `tries` (`None` when there are none).
-pub(super) fn choose(context: &Context, tries: &[Settled]) -> Option<Answer> {
+/// The best of `tries` (`None` when there are none), its existence under the
+/// calibration of clouds with or without sensor origins, as `unexplained` has them.
+pub(super) fn choose(
+    context: &Context,
+    unexplained: &Unexplained,
+    tries: &[Settled],
+) -> Option<Answer> {
+    let calibration = match unexplained.sensors {
+        Some(_) => &confidence::WITH_SENSORS,
+        None => &confidence::WITHOUT_SENSORS,
+    };
     let pick = (0..tries.len()).max_by(|&a, &b| {
         (tries[a].margin)
             .total_cmp(&tries[b].margin)
@@ -111,7 +120,7 @@ pub(super) fn choose(context: &Context, tries: &[Settled]) -> Option<Answer> {
     Some(Answer {
         pick,
         runner_up,
-        existence: confidence::existence(tries[pick].margin, runner_up),
+        existence: confidence::existence(tries[pick].margin, runner_up, calibration),
     })
 }
 

@@ -21,10 +21,12 @@
 //!
 //! **Calibration.** The existence is a logistic function of `z` and of its lead over
 //! the best other answer of the final choice (an object that another pose explains
-//! nearly as well is ambiguous), whose coefficients were fitted on benchmark scenes,
-//! right and wrong poses and scenes without the object (`benches/calibrate_confidence.py`,
-//! answers and reliability table in `docs/registration_confidence.md`), capped at
-//! [`MAX_EXISTENCE`]: no finite calibration set supports certainty.
+//! nearly as well is ambiguous): [`WITH_SENSORS`] for clouds with sensor origins,
+//! [`WITHOUT_SENSORS`] for clouds without (no visibility test: margins run higher),
+//! each fitted on benchmark scenes, right and wrong poses and scenes without the object
+//! (`benches/calibrate_confidence.py`, answers and reliability tables in
+//! `docs/registration_confidence.md`), capped at [`MAX_EXISTENCE`]: no finite
+//! calibration set supports certainty.
 
 use nalgebra::Point3;
 
@@ -32,18 +34,39 @@ use crate::Primitive;
 
 /// Outer radius of the comparison shell, in inlier distances.
 pub const SHELL_FACTOR: f64 = 4.0;
-/// Logistic calibration of the existence: `p = σ(CALIBRATION_BIAS + CALIBRATION_MARGIN
-/// · z + CALIBRATION_GAP · gap)`, `z` the margin over clutter and `gap = min(z − z₂,
-/// GAP_CAP)` its lead over the best other answer (`z₂` at least 0, the margin
-/// of clutter alone). Fitted (L2-regularised logistic regression, λ = 1) on 56
-/// benchmark answers, 39 right and 17 wrong, seeds 100–103 of whole-surface,
-/// partial-view, cluttered and object-free scenes of the bunny and the procedural object
-/// (`benches/calibrate_confidence.py`, docs/registration_confidence.md).
-pub const CALIBRATION_BIAS: f64 = -3.92;
-/// See [`CALIBRATION_BIAS`] (per unit of `z`).
-pub const CALIBRATION_MARGIN: f64 = 0.367;
-/// See [`CALIBRATION_BIAS`] (per unit of the gap).
-pub const CALIBRATION_GAP: f64 = 0.314;
+/// Logistic calibration of the existence: `p = σ(bias + margin · z + gap · lead)`, `z`
+/// the margin over clutter and `lead = min(z − z₂, `[`GAP_CAP`]`)` its lead over the best
+/// other answer (`z₂` at least 0, the margin of clutter alone).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Calibration {
+    /// Log-odds at `z = 0` and no lead.
+    pub bias: f64,
+    /// Log-odds per unit of `z`.
+    pub margin: f64,
+    /// Log-odds per unit of the lead.
+    pub gap: f64,
+}
+
+/// The calibration for clouds with sensor origins (the visibility test on). Fitted
+/// (L2-regularised logistic regression, λ = 1) on 40 benchmark answers, 27 right and
+/// 13 wrong: seeds 100–103 of the partial-view scenes (the ones with sensor origins),
+/// plain, cluttered and object-free, of the bunny and the procedural object
+/// (`benches/calibrate_confidence.py --sensors-only`, docs/registration_confidence.md).
+pub const WITH_SENSORS: Calibration = Calibration {
+    bias: -3.50,
+    margin: 0.353,
+    gap: 0.038,
+};
+
+/// The calibration for clouds without sensor origins (most real scans as they arrive:
+/// no visibility test, so margins run higher for right and wrong poses alike). Fitted
+/// as [`WITH_SENSORS`] on 56 answers (38 right): the same seeds of every scene kind,
+/// whole-surface ones included, with the sensor origins dropped.
+pub const WITHOUT_SENSORS: Calibration = Calibration {
+    bias: -5.45,
+    margin: 0.317,
+    gap: 0.842,
+};
 /// Largest lead over the runner-up that counts (a runner-up far behind is as good as
 /// none).
 pub const GAP_CAP: f64 = 10.0;
@@ -127,11 +150,11 @@ pub fn margin(support: Support) -> f64 {
 
 /// The calibrated probability that an object with margin `z` over clutter, whose best
 /// other answer has margin `runner_up` (−∞: none), is really there at that pose
-/// (module documentation), in `[0, MAX_EXISTENCE]`.
-pub fn existence(z: f64, runner_up: f64) -> f64 {
+/// (module documentation), under `calibration`, in `[0, MAX_EXISTENCE]`.
+pub fn existence(z: f64, runner_up: f64, calibration: &Calibration) -> f64 {
     // Clutter alone gives a margin of about 0: no runner-up is worse than that.
-    let gap = (z - runner_up.max(0.0)).clamp(0.0, GAP_CAP);
-    let logit = CALIBRATION_BIAS + CALIBRATION_MARGIN * z + CALIBRATION_GAP * gap;
+    let lead = (z - runner_up.max(0.0)).clamp(0.0, GAP_CAP);
+    let logit = calibration.bias + calibration.margin * z + calibration.gap * lead;
     (1.0 / (1.0 + (-logit).exp())).min(MAX_EXISTENCE)
 }
 
@@ -158,9 +181,11 @@ mod tests {
         let mut rng = ChaCha8Rng::seed_from_u64(1);
         let sphere = Primitive::new(Shape::Sphere { diameter: 1.0 }, Pose::identity());
         let mut cloud = uniform(4000, 1.0, &mut rng);
+        // No sensor origins: the calibration for clouds without them.
+        let calibration = &WITHOUT_SENSORS;
         let clutter = margin(support(&cloud, None, &sphere, 0.01));
         assert!(clutter.abs() < 3.5, "{clutter}");
-        assert!(existence(clutter, f64::NEG_INFINITY) < 0.1);
+        assert!(existence(clutter, f64::NEG_INFINITY, calibration) < 0.1);
         // 100 points on the sphere.
         cloud.extend((0..100).map(|_| {
             let v = Vector3::from_fn(|_, _| rng.random::<f64>() - 0.5);
@@ -168,10 +193,21 @@ mod tests {
         }));
         let object = margin(support(&cloud, None, &sphere, 0.01));
         assert!(object > 10.0, "{object}");
-        let p = existence(object, f64::NEG_INFINITY);
-        assert!(p > 0.9 && p <= MAX_EXISTENCE);
-        // A runner-up as good as the best halves the confidence at most to its share.
-        assert!(existence(object, object) < p);
+        let p = existence(object, f64::NEG_INFINITY, calibration);
+        assert!(p > 0.9 && p <= MAX_EXISTENCE, "{p}");
+        // A runner-up as good as the best lowers the confidence.
+        assert!(existence(object, object, calibration) < p);
+    }
+
+    #[test]
+    fn both_calibrations_rise_with_the_margin_and_the_lead_and_stay_capped() {
+        for calibration in [&WITH_SENSORS, &WITHOUT_SENSORS] {
+            let none = f64::NEG_INFINITY;
+            assert!(existence(0.0, none, calibration) < 0.1);
+            assert!(existence(5.0, none, calibration) < existence(15.0, none, calibration));
+            assert!(existence(15.0, 15.0, calibration) < existence(15.0, 5.0, calibration));
+            assert_eq!(existence(1e6, none, calibration), MAX_EXISTENCE);
+        }
     }
 
     #[test]

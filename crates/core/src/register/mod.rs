@@ -308,7 +308,7 @@ fn find_object(
 ) -> Result<FoundObject> {
     let options = context.options;
     let mut tries = choice::settle_all(context, cloud, unexplained, mesh, pair_starts, 1.0);
-    if let Some(answer) = choice::choose(context, &tries)
+    if let Some(answer) = choice::choose(context, unexplained, &tries)
         && answer.existence >= options.accept_without_search
     {
         progress.advance(options.max_rounds as u64);
@@ -333,7 +333,8 @@ fn find_object(
         &starts,
         scale,
     ));
-    let answer = choice::choose(context, &tries).expect("the filter's answer is a try");
+    let answer =
+        choice::choose(context, unexplained, &tries).expect("the filter's answer is a try");
     Ok(choice::found_object(
         cloud,
         tries,
