@@ -319,6 +319,60 @@ fn a_scene_without_the_object_reports_none() {
 }
 
 #[test]
+fn the_search_gives_up_where_no_particle_pays_for_itself() {
+    let mesh = asymmetric_object();
+    let size = model_size(&mesh);
+    let scene = |inliers: usize| {
+        registration(
+            &mesh,
+            &RegistrationParams {
+                inliers,
+                outliers: 400,
+                translation: 0.25 * size,
+                seed: 2,
+                ..Default::default()
+            },
+        )
+        .unwrap()
+    };
+    let options = RegisterOptions {
+        count: Some(1),
+        min_confidence: 0.0,
+        pair_hypotheses: 0, // the particle filter searches alone
+        seed: 2,
+        ..Default::default()
+    };
+    let give_up = options.give_up_rounds;
+    assert!(give_up > 0);
+    let rounds = |cloud, options: &RegisterOptions| {
+        let r = register(cloud, &mesh, options, &Silent).unwrap();
+        r.objects[0].rounds.len()
+    };
+    // Clutter alone: once the kernel is fine, no particle explains enough points to
+    // pay for itself; the search stops after `give_up` such rounds instead of settling.
+    let empty = scene(0);
+    let patient = RegisterOptions {
+        give_up_rounds: 0,
+        ..options.clone()
+    };
+    let (quick, slow) = (
+        rounds(&empty.cloud, &options),
+        rounds(&empty.cloud, &patient),
+    );
+    assert!(quick >= give_up && quick < slow, "{quick} vs {slow} rounds");
+    // With the object (80 % outliers) the search goes on and finds it.
+    let present = scene(100);
+    let r = register(&present.cloud, &mesh, &options, &Silent).unwrap();
+    let o = &r.objects[0];
+    assert!(o.rounds.len() > give_up, "{} rounds", o.rounds.len());
+    let (rot, trans) = errors(&o.primitive.pose, &present.truth[0].pose, size);
+    assert!(
+        rot < MAX_ROTATION_DEG && trans < MAX_TRANSLATION_REL,
+        "{rot}° {trans}"
+    );
+}
+
+#[test]
 fn result_json_lists_found_objects() {
     let mesh = asymmetric_object();
     let scene = registration(

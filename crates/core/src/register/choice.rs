@@ -46,6 +46,17 @@ impl Unexplained {
     }
 }
 
+/// A start pose polished against the whole cloud: what a try is before it is measured.
+/// It does not depend on which points are still unexplained, so the point-pair
+/// hypotheses are polished once and measured again for each object searched for.
+#[derive(Clone)]
+pub(super) struct Polished {
+    /// The pose it started from.
+    pub start: Pose,
+    /// Its ICP-refined pose, inliers and RMS.
+    pub refined: icp::IcpResult,
+}
+
 /// One try of the final choice.
 pub(super) struct Settled {
     /// The pose it started from.
@@ -57,8 +68,46 @@ pub(super) struct Settled {
 }
 
 /// Each of `starts` (at `scale`) polished by ICP from the first kernel down to the last
-/// ([`settle`]), refined down to the inlier distance ([`refine_object`]) and measured
-/// on `unexplained`; the tries run in parallel, in order.
+/// ([`settle`]) and refined down to the inlier distance ([`refine_object`]), in
+/// parallel, in order.
+pub(super) fn polish_all(
+    context: &Context,
+    cloud: &PointCloud,
+    mesh: &MeshShape,
+    starts: &[Pose],
+    scale: f64,
+) -> Vec<Polished> {
+    let kernel = context.options.kernel_end * context.size * scale;
+    starts
+        .par_iter()
+        .map(|start| {
+            let settled = settle(context, cloud, mesh, *start, scale);
+            Polished {
+                start: *start,
+                refined: refine_object(context, cloud, mesh, settled, kernel, scale),
+            }
+        })
+        .collect()
+}
+
+/// Each of `polished` measured on `unexplained` (its margin), in parallel, in order.
+pub(super) fn measure_all(
+    context: &Context,
+    unexplained: &Unexplained,
+    polished: &[Polished],
+) -> Vec<Settled> {
+    polished
+        .par_iter()
+        .map(|p| Settled {
+            start: p.start,
+            refined: p.refined.clone(),
+            margin: margin_of(context, unexplained, &p.refined.pose),
+        })
+        .collect()
+}
+
+/// Each of `starts` polished ([`polish_all`]) and measured on `unexplained`
+/// ([`measure_all`]).
 pub(super) fn settle_all(
     context: &Context,
     cloud: &PointCloud,
@@ -67,20 +116,8 @@ pub(super) fn settle_all(
     starts: &[Pose],
     scale: f64,
 ) -> Vec<Settled> {
-    let kernel = context.options.kernel_end * context.size * scale;
-    starts
-        .par_iter()
-        .map(|start| {
-            let settled = settle(context, cloud, mesh, *start, scale);
-            let refined = refine_object(context, cloud, mesh, settled, kernel, scale);
-            let margin = margin_of(context, unexplained, &refined.pose);
-            Settled {
-                start: *start,
-                refined,
-                margin,
-            }
-        })
-        .collect()
+    let polished = polish_all(context, cloud, mesh, starts, scale);
+    measure_all(context, unexplained, &polished)
 }
 
 /// The try chosen and how sure it is.

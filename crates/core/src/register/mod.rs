@@ -48,7 +48,9 @@
 //! [`RegisterOptions::kernel_start`] × the model size and shrinks geometrically each
 //! round to [`RegisterOptions::kernel_end`] × size; the move spread shrinks with it. The
 //! filter stops when the best pose has been stable for
-//! [`RegisterOptions::settle_rounds`] rounds at the final kernel.
+//! [`RegisterOptions::settle_rounds`] rounds at the final kernel, and gives up after
+//! [`RegisterOptions::give_up_rounds`] rounds in a row in which no particle paid its
+//! primitive term (the search for one more object in a scene that has no more).
 //!
 //! **Point-pair hypotheses.** On a partial view the filter's search over rotations can
 //! settle in a wrong basin whose surface also lies along the seen side. With translation
@@ -261,7 +263,14 @@ pub fn register(
     // The points no object found so far explains: each new object's margin is measured
     // on them, so a second copy of a found object has no support.
     let mut unexplained = Unexplained::all(cloud);
-    let pair_starts = pair_hypotheses(&context, cloud, mesh);
+    // Polished once: each search measures them on the points still unexplained.
+    let pair_tries = choice::polish_all(
+        &context,
+        cloud,
+        mesh,
+        &pair_hypotheses(&context, cloud, mesh),
+        1.0,
+    );
     for _ in 0..wanted {
         let found: Vec<Pose> = objects.iter().map(|o| o.primitive.pose).collect();
         let object = find_object(
@@ -269,7 +278,7 @@ pub fn register(
             cloud,
             &unexplained,
             (mesh, &flips),
-            &pair_starts,
+            &pair_tries,
             (&found, &mut rng),
             progress,
         )?;
@@ -292,8 +301,8 @@ pub fn register(
     })
 }
 
-/// The next object: the point-pair hypotheses `pair_starts`, settled by ICP
-/// (`choice.rs`), are accepted as they are when the best of them already reaches
+/// The next object: the point-pair hypotheses `pair_tries`, polished by ICP
+/// (`choice.rs`) and measured on the points `unexplained`, are accepted as they are when the best of them already reaches
 /// [`RegisterOptions::accept_without_search`]; otherwise the particle filter searches
 /// (conditioned on the objects `found`) and its answer's symmetry tries join them in
 /// the final choice.
@@ -302,12 +311,12 @@ fn find_object(
     cloud: &PointCloud,
     unexplained: &Unexplained,
     (mesh, flips): (&MeshShape, &[Pose]),
-    pair_starts: &[Pose],
+    pair_tries: &[choice::Polished],
     (found, rng): (&[Pose], &mut ChaCha8Rng),
     progress: &dyn Progress,
 ) -> Result<FoundObject> {
     let options = context.options;
-    let mut tries = choice::settle_all(context, cloud, unexplained, mesh, pair_starts, 1.0);
+    let mut tries = choice::measure_all(context, unexplained, pair_tries);
     if let Some(answer) = choice::choose(context, unexplained, &tries)
         && answer.existence >= options.accept_without_search
     {

@@ -79,6 +79,11 @@ pub struct RegisterOptions {
     pub translation_spread: f64,
     /// Rounds with a stable best pose at the last kernel before stopping.
     pub settle_rounds: usize,
+    /// The search gives up after this many rounds in a row in which no particle's
+    /// point-term gain paid its primitive term (every score ≤ 0: nothing in the cloud
+    /// explains [`RegisterOptions::search_support`] points beyond clutter); its best pose
+    /// is still settled and measured. 0 = never give up.
+    pub give_up_rounds: usize,
     /// Target effective sample size, as a share of the particles (in (0, 1]).
     pub ess: f64,
     /// β of the chamfer: candidates kept per point.
@@ -162,6 +167,7 @@ impl Default for RegisterOptions {
             spread: 0.5,
             translation_spread: 0.25,
             settle_rounds: 2,
+            give_up_rounds: 3,
             ess: 0.1,
             beta: 8,
             primitive_weight: None,

@@ -134,6 +134,7 @@ impl Context<'_> {
         let mut rounds = Vec::new();
         let mut best = Pose::identity();
         let mut stable = 0;
+        let mut unpaid = 0;
         let mut basins = vec![None; self.flips.len().saturating_sub(1)];
         for round in 0..o.max_rounds {
             let kernel =
@@ -164,6 +165,11 @@ impl Context<'_> {
                 ess,
             });
             progress.advance(1);
+            // No particle has paid for itself for a while: nothing (more) to find here.
+            unpaid = if sb > 0.0 { 0 } else { unpaid + 1 };
+            if o.give_up_rounds > 0 && unpaid == o.give_up_rounds {
+                break;
+            }
             let at_end = kernel <= o.kernel_end * self.size * (1.0 + 1e-9);
             if at_end {
                 let settled = self.settled(&previous, &best, &rounds, kernel);
