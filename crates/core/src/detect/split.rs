@@ -20,6 +20,7 @@
 //!    **clutter**, as is what remains at the depth limit.
 
 use nalgebra::Point3;
+use rayon::prelude::*;
 
 use super::classify::classify;
 use super::merge::Part;
@@ -53,6 +54,9 @@ pub struct Splitter<'a> {
     /// Neighbours that connect samples (the growing neighbourhood).
     pub neighbours: usize,
 }
+
+/// Marks a sample outside the ids of [`Splitter::components`].
+const NOT_INSIDE: usize = usize::MAX;
 
 impl Splitter<'_> {
     /// The parts of the region `ids` (ascending sample indices): one classified part, or
@@ -108,20 +112,28 @@ impl Splitter<'_> {
             return;
         }
         let mut taken = vec![false; self.samples.len()];
-        for piece in pieces {
-            for &i in &piece {
-                taken[i] = true;
-            }
-            self.split(piece, depth + 1, out);
+        for &i in pieces.iter().flatten() {
+            taken[i] = true;
         }
-        let rest: Vec<usize> = on.into_iter().chain(off).filter(|&i| !taken[i]).collect();
-        let mut rest = rest;
+        let mut rest: Vec<usize> = on.into_iter().chain(off).filter(|&i| !taken[i]).collect();
         rest.sort_unstable();
-        for piece in self.components(&rest) {
-            if piece.len() >= self.min_points {
-                self.split(piece, depth + 1, out);
-            }
-        }
+        let rest = self
+            .components(&rest)
+            .into_iter()
+            .filter(|c| c.len() >= self.min_points);
+        // The pieces are disjoint: split in parallel, kept in order (deterministic).
+        let split: Vec<Vec<Part>> = pieces
+            .into_iter()
+            .chain(rest)
+            .collect::<Vec<_>>()
+            .into_par_iter()
+            .map(|piece| {
+                let mut parts = Vec::new();
+                self.split(piece, depth + 1, &mut parts);
+                parts
+            })
+            .collect();
+        out.extend(split.into_iter().flatten());
     }
 
     /// Membership (over all samples) of the inliers of the dominant plane of `ids`
@@ -169,9 +181,11 @@ impl Splitter<'_> {
     /// The connected pieces of `ids` (ascending) over the growing neighbourhoods, each
     /// ascending, in order of their lowest sample.
     fn components(&self, ids: &[usize]) -> Vec<Vec<usize>> {
-        let mut inside = std::collections::HashMap::with_capacity(ids.len());
+        // Each sample's position in `ids` (`NOT_INSIDE` elsewhere): a dense table, one
+        // read per neighbour, where a hash map spent most of this function hashing.
+        let mut inside = vec![NOT_INSIDE; self.samples.len()];
         for (k, &i) in ids.iter().enumerate() {
-            inside.insert(i, k);
+            inside[i] = k;
         }
         let mut seen = vec![false; ids.len()];
         let take = self.neighbours.min(self.nb.k.saturating_sub(1));
@@ -187,9 +201,8 @@ impl Splitter<'_> {
             while let Some(i) = stack.pop() {
                 piece.push(i);
                 for &j in &self.nb.row(i)[1..=take] {
-                    if let Some(&k) = inside.get(&(j as usize))
-                        && !seen[k]
-                    {
+                    let k = inside[j as usize];
+                    if k != NOT_INSIDE && !seen[k] {
                         seen[k] = true;
                         stack.push(j as usize);
                     }
