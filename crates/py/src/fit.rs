@@ -218,7 +218,7 @@ fn method_options(name: Option<&str>, a: McmcArgs) -> PyResult<Option<MethodOpti
 
 /// `mesh_model`: the path of a PLY mesh (as `--mesh-model`), or `(vertices (V, 3)
 /// float64, faces (F, 3) int64)`.
-fn mesh_shape(mesh_model: Option<&Bound<'_, PyAny>>) -> PyResult<Option<MeshShape>> {
+pub(crate) fn mesh_shape(mesh_model: Option<&Bound<'_, PyAny>>) -> PyResult<Option<MeshShape>> {
     let Some(m) = mesh_model.filter(|m| !m.is_none()) else {
         return Ok(None);
     };

@@ -11,6 +11,7 @@ mod convert;
 mod fit;
 mod io;
 mod pool;
+mod register;
 mod render;
 mod synth;
 mod tiles;
@@ -26,6 +27,8 @@ mod _primfit {
     use super::fit::{PyFitOptions, candidates, fit, fit_problem, read_result};
     #[pymodule_export]
     use super::io::{primitives_mesh, read_mesh, read_ply, write_mesh, write_ply};
+    #[pymodule_export]
+    use super::register::register;
     #[pymodule_export]
     use super::render::render;
     #[pymodule_export]

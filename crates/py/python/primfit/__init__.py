@@ -47,6 +47,7 @@ __all__ = [
     "read_mesh",
     "read",
     "read_ply",
+    "register",
     "render",
     "synth",
     "write_mesh",
@@ -459,6 +460,44 @@ def fit(cloud: ArrayLike | Mapping[str, Any], **options: Any) -> FitResult:
     """
     points, extra = _cloud(cloud)
     return FitResult(*_primfit.fit(points, _fit_options(options), **extra))
+
+
+def register(
+    cloud: ArrayLike | Mapping[str, Any],
+    model: str | os.PathLike[str] | tuple[ArrayLike, ArrayLike],
+    *,
+    count: int | None = None,
+    min_confidence: float | None = None,
+    rotation_only: bool = False,
+    scale: tuple[float, float] | None = None,
+    seed: int = 0,
+) -> FitResult:
+    """Finds the object ``model`` in ``cloud``, as ``primfit register`` does: the full
+    pose (rotation and translation) of each copy, with its calibrated existence.
+
+    ``cloud`` as for :func:`fit`; a dict from :func:`read_ply` with ``sensors`` (per-point
+    sensor origins) turns on the visibility test and its calibration. ``model`` is a PLY
+    mesh path, or ``(vertices (V, 3), faces (F, 3) int)`` (e.g. :func:`read_mesh`; the
+    result's mesh ``source`` is then ``"python"`` and :meth:`FitResult.to_mesh` needs a
+    path). With ``count`` unset every copy whose existence reaches ``min_confidence``
+    (default 0.5) is reported and the search stops at the first that does not; with
+    ``count`` that many are searched for and those below ``min_confidence`` left out.
+    ``rotation_only`` keeps the translation at the origin; ``scale=(lo, hi)`` also
+    searches a scale in that range. The result's primitives are ``"type": "mesh"``
+    entries with ``pose``, ``existence``, ``margin`` (over clutter) and
+    ``inlier_share``. Raises ``ValueError`` for a bad option or input, ``OSError`` for
+    an unreadable model; Ctrl-C stops it (``KeyboardInterrupt``).
+    """
+    points, extra = _cloud(cloud)
+    if isinstance(model, tuple):
+        mesh: Any = (_points("model vertices", model[0]), _ints("model faces", model[1], 2))
+    else:
+        mesh = os.fspath(model)
+    document, existence = _primfit.register(
+        points, mesh, sensors=extra.get("sensors"), count=count, min_confidence=min_confidence,
+        rotation_only=rotation_only, scale=scale, seed=seed,
+    )
+    return FitResult(document, existence)
 
 
 class Candidates:

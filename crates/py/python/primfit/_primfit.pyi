@@ -25,6 +25,7 @@ __all__ = [
     "read_mesh",
     "read_ply",
     "read_result",
+    "register",
     "render",
     "spilled_tile_points",
     "split_survey",
@@ -137,6 +138,17 @@ def fit(
     normals: _F64 | None = None,
     labels: npt.NDArray[np.int32] | None = None,
     sensors: _F64 | None = None,
+) -> tuple[str, _F64]: ...
+def register(
+    cloud: _F64,
+    model: str | tuple[_F64, _I64],
+    *,
+    sensors: _F64 | None = None,
+    count: int | None = None,
+    min_confidence: float | None = None,
+    rotation_only: bool = False,
+    scale: tuple[float, float] | None = None,
+    seed: int = 0,
 ) -> tuple[str, _F64]: ...
 def read_result(text: str) -> _F64: ...
 def candidates(cloud: _F64, options: FitOptions) -> tuple[str, _F64, _I64, str]: ...
