@@ -1,5 +1,5 @@
 """`primfit.register`: the CLI's `primfit register` on arrays, checked against the
-ground truth of synthetic scenes of the Stanford bunny."""
+ground truth of a synthetic scene of an asymmetric object made here."""
 
 from __future__ import annotations
 
@@ -11,7 +11,43 @@ import pytest
 import primfit
 
 REPO = Path(__file__).resolve().parents[3]
-BUNNY = REPO.parent / "shared" / "data" / "bunny.ply"
+
+
+def box(centre, half) -> tuple[np.ndarray, np.ndarray]:
+    """A box's 8 corners and 12 triangles, wound outward."""
+    corners = np.array([[sx, sy, sz] for sx in (-1, 1) for sy in (-1, 1) for sz in (-1, 1)], float)
+    vertices = np.asarray(centre, float) + corners * np.asarray(half, float)
+    faces = []
+    for axis in range(3):
+        for sign in (-1, 1):
+            quad = [k for k in range(8) if corners[k, axis] == sign]
+            a, b, c, d = quad  # bit order: the quad's corners are a, b, d, c around it
+            for tri in ([a, b, d], [a, d, c]):
+                n = np.cross(vertices[tri[1]] - vertices[tri[0]], vertices[tri[2]] - vertices[tri[0]])
+                faces.append(tri if n[axis] * sign > 0 else tri[::-1])
+    return vertices, np.array(faces, np.int64)
+
+
+def asymmetric_object() -> tuple[np.ndarray, np.ndarray]:
+    """Three boxes of different sizes, off-centre: no symmetry a pose could confuse."""
+    parts = [box([0, 0, 0], [0.5, 0.3, 0.2]), box([0.35, 0.45, 0.1], [0.15, 0.15, 0.3]),
+             box([-0.3, -0.1, 0.45], [0.2, 0.2, 0.25])]
+    vertices, faces, offset = [], [], 0
+    for v, f in parts:
+        vertices.append(v)
+        faces.append(f + offset)
+        offset += len(v)
+    return np.concatenate(vertices), np.concatenate(faces)
+
+
+def write_mesh_ply(path: Path, vertices: np.ndarray, faces: np.ndarray) -> None:
+    """An ASCII PLY mesh."""
+    lines = ["ply", "format ascii 1.0", f"element vertex {len(vertices)}",
+             "property double x", "property double y", "property double z",
+             f"element face {len(faces)}", "property list uchar int vertex_indices", "end_header"]
+    lines += [" ".join(repr(float(x)) for x in v) for v in vertices]
+    lines += ["3 " + " ".join(str(int(i)) for i in f) for f in faces]
+    path.write_text("\n".join(lines) + "\n")
 
 
 def quaternion_matrix(q) -> np.ndarray:
@@ -33,18 +69,20 @@ def pose_errors(found: dict, truth: dict, size: float) -> tuple[float, float]:
 
 
 @pytest.fixture(scope="module")
-def bunny():
-    vertices, faces = primfit.read_mesh(BUNNY)
+def scene(tmp_path_factory):
+    vertices, faces = asymmetric_object()
+    path = tmp_path_factory.mktemp("register") / "object.ply"
+    write_mesh_ply(path, vertices, faces)
     size = float(np.linalg.norm(vertices.max(axis=0) - vertices.min(axis=0)))
     cloud, truth = primfit.synth.registration(
         mesh=(vertices, faces), inliers=100, outliers=900, translation=0.25 * size, seed=3
     )
-    return vertices, faces, size, cloud, truth[0]
+    return path, vertices, faces, size, cloud, truth[0]
 
 
-def test_the_default_finds_the_one_object_at_its_pose(bunny):
-    vertices, faces, size, cloud, truth = bunny
-    result = primfit.register(cloud, BUNNY)
+def test_the_default_finds_the_one_object_at_its_pose(scene):
+    path, vertices, faces, size, cloud, truth = scene
+    result = primfit.register(cloud, path)
     assert len(result) == 1, result.primitives
     found = result.primitives[0]
     rotation, translation = pose_errors(found, truth, size)
@@ -58,8 +96,8 @@ def test_the_default_finds_the_one_object_at_its_pose(bunny):
     assert same.primitives[0]["pose"] == found["pose"]
 
 
-def test_clutter_alone_reports_nothing(bunny):
-    vertices, faces, size, cloud, _ = bunny
+def test_clutter_alone_reports_nothing(scene):
+    _, vertices, faces, _, cloud, _ = scene
     clutter = cloud[100:]  # the synthetic scene lists the object's points first
     assert len(primfit.register(clutter, (vertices, faces))) == 0
     # Asked for one object at any confidence, it answers, with a low existence.
@@ -67,8 +105,8 @@ def test_clutter_alone_reports_nothing(bunny):
     assert len(forced) == 1 and forced.existence[0] < 0.5
 
 
-def test_bad_input_raises(bunny):
-    vertices, faces, _, cloud, _ = bunny
+def test_bad_input_raises(scene):
+    _, vertices, faces, _, cloud, _ = scene
     with pytest.raises(OSError):
         primfit.register(cloud, REPO / "no-such-model.ply")
     with pytest.raises(ValueError, match="count"):

@@ -12,6 +12,10 @@ use nalgebra::{Point3, Vector3};
 use super::TriMesh;
 use super::numeric::slab;
 
+/// Relative slack on a hint's distance in [`TriangleBvh::closest_point_near`]: a hint
+/// on the surface rounded in its last bits still bounds the search.
+const HINT_SLACK: f64 = 1e-6;
+
 /// At most this many triangles in a leaf.
 const LEAF_SIZE: usize = 4;
 
@@ -94,11 +98,36 @@ impl TriangleBvh {
 
     /// The closest point of any triangle to `p` (`None` only for an empty mesh).
     pub(super) fn closest_point(&self, p: &Point3<f64>) -> Option<Point3<f64>> {
+        self.closest_point_near(p, None)
+    }
+
+    /// [`TriangleBvh::closest_point`], given `hint`, a point at or near the surface (e.g.
+    /// a nearby query's answer): nodes farther than the hint (plus a relative
+    /// [`HINT_SLACK`]) are skipped from the start, which makes a sweep of nearby queries
+    /// several times cheaper. The answer is always a face's point; a hint closer than
+    /// the surface (off it) falls back to the plain query.
+    pub(super) fn closest_point_near(
+        &self,
+        p: &Point3<f64>,
+        hint: Option<&Point3<f64>>,
+    ) -> Option<Point3<f64>> {
         if self.triangles.is_empty() {
             return None;
         }
+        let start = hint.map_or(f64::INFINITY, |h| {
+            ((h - p).norm() * (1.0 + HINT_SLACK)).powi(2)
+        });
+        match self.closest_within(p, start) {
+            Some(c) => Some(c),
+            None if start.is_finite() => self.closest_within(p, f64::INFINITY),
+            None => None,
+        }
+    }
+
+    /// The closest face point to `p` among those nearer than `√bound2` (`None` if none).
+    fn closest_within(&self, p: &Point3<f64>, bound2: f64) -> Option<Point3<f64>> {
         let mut best: Option<(f64, Point3<f64>)> = None;
-        let bound = |best: &Option<(f64, Point3<f64>)>| best.map_or(f64::INFINITY, |(d2, _)| d2);
+        let bound = |best: &Option<(f64, Point3<f64>)>| best.map_or(bound2, |(d2, _)| d2);
         let mut stack = vec![(0u32, self.nodes[0].bounds.distance2(p))];
         while let Some((index, box_d2)) = stack.pop() {
             if box_d2 >= bound(&best) {

@@ -1049,3 +1049,29 @@ fn unit_icosphere_is_a_closed_outward_unit_sphere() {
         );
     }
 }
+
+#[test]
+fn closest_point_from_a_hint_is_the_exact_distance() {
+    // A lumpy icosphere (uneven faces), queried along a line as the distance grid does:
+    // each query starts from the previous answer, or from a far-off surface point.
+    let mut mesh = icosphere(1.0, 3);
+    for (k, v) in mesh.vertices.iter_mut().enumerate() {
+        *v = Point3::from(v.coords * (1.0 + 0.2 * ((k * 7919) % 13) as f64 / 13.0));
+    }
+    let shape = MeshShape::new("lumpy", mesh.clone()).unwrap();
+    let mut r = rng(5);
+    for _ in 0..40 {
+        let (a, b) = (random_point(&mut r, 2.0), random_point(&mut r, 2.0));
+        let mut previous = shape.closest_point(&a);
+        for t in 0..25 {
+            let p = a + (b - a) * (t as f64 / 24.0);
+            let brute = mesh_brute_distance(&mesh, &p);
+            for hint in [previous, mesh.vertices[t * 17 % mesh.vertices.len()]] {
+                let c = shape.closest_point_near(&p, &hint);
+                assert!((((p - c).norm()) - brute).abs() < 1e-12, "{p}: {c}");
+                assert!(mesh_residual(&mesh, &c) < 1e-9);
+            }
+            previous = shape.closest_point_near(&p, &previous);
+        }
+    }
+}

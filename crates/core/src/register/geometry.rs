@@ -50,17 +50,22 @@ impl DistanceGrid {
         let (lo, hi) = (lo - Vector3::repeat(pad), hi + Vector3::repeat(pad));
         let cell = (hi - lo).max() / cells.max(2) as f64;
         let dims = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell).ceil() as usize + 1);
-        let closest = (0..dims[0] * dims[1] * dims[2])
+        // Row by row along x, each query starting from the previous cell's answer (a
+        // bound within one cell of the truth), the rows in parallel.
+        let closest: Vec<[f32; 3]> = (0..dims[1] * dims[2])
             .into_par_iter()
-            .map(|k| {
-                let (i, j, l) = (
-                    k % dims[0],
-                    (k / dims[0]) % dims[1],
-                    k / (dims[0] * dims[1]),
-                );
-                let p = lo + Vector3::new(i as f64, j as f64, l as f64) * cell;
-                let c = mesh.closest_point(&p);
-                [c.x as f32, c.y as f32, c.z as f32]
+            .flat_map_iter(|row| {
+                let (j, l) = (row % dims[1], row / dims[1]);
+                let mut previous: Option<Point3<f64>> = None;
+                (0..dims[0]).map(move |i| {
+                    let p = lo + Vector3::new(i as f64, j as f64, l as f64) * cell;
+                    let c = match &previous {
+                        Some(h) => mesh.closest_point_near(&p, h),
+                        None => mesh.closest_point(&p),
+                    };
+                    previous = Some(c);
+                    [c.x as f32, c.y as f32, c.z as f32]
+                })
             })
             .collect();
         DistanceGrid {
@@ -83,6 +88,19 @@ impl DistanceGrid {
     #[inline]
     pub fn box_distance(&self, p: &Point3<f64>) -> f64 {
         (p.coords - p.coords.sup(&self.mesh_lo.coords).inf(&self.mesh_hi.coords)).norm()
+    }
+
+    /// The tabulated closest surface point of the grid node nearest `p` (local frame,
+    /// clamped to the grid): a point within about a cell of `p`'s own closest point, to
+    /// start an exact query from ([`MeshShape::closest_point_near`]).
+    pub fn hint(&self, p: &Point3<f64>) -> Point3<f64> {
+        let node = |a: usize| {
+            let x = ((p[a] - self.lo[a]) / self.cell).round();
+            (x.max(0.0) as usize).min(self.dims[a] - 1)
+        };
+        let (nx, nxy) = (self.dims[0], self.dims[0] * self.dims[1]);
+        let v = self.closest[node(0) + node(1) * nx + node(2) * nxy];
+        Point3::new(v[0] as f64, v[1] as f64, v[2] as f64)
     }
 
     /// Distance from `p` (local frame) to the mesh surface (local units).

@@ -121,7 +121,7 @@ fn correspondences(
             if (grid.distance(&local) - slack) * pose.scale > tau {
                 return None;
             }
-            let c = mesh.closest_point(&local);
+            let c = mesh.closest_point_near(&local, &grid.hint(&local));
             let d = (local - c).norm() * pose.scale;
             (d <= tau).then_some((c, *y, d, j))
         })
