@@ -137,6 +137,9 @@ pub fn run(args: RegisterArgs, out: &Output) -> Result<()> {
             result.objects.len(),
             result.seconds
         );
+        if out.verbose {
+            println!("stages: {}", result.timings.summary());
+        }
         for (k, o) in result.objects.iter().enumerate() {
             let p = &o.primitive.pose;
             let (axis, angle) = p

@@ -111,12 +111,44 @@ impl TriangleBvh {
         p: &Point3<f64>,
         hint: Option<&Point3<f64>>,
     ) -> Option<Point3<f64>> {
+        let start = hint.map_or(f64::INFINITY, |h| (h - p).norm_squared());
+        self.closest_bounded(p, start).map(|(q, _)| q)
+    }
+
+    /// [`TriangleBvh::closest_point`] and the face it lies on (an index in leaf order),
+    /// given the face of a nearby query's answer (an out-of-range face is no hint),
+    /// exact where a face is within `reach` of `p`: the distance to the hint face bounds
+    /// the search from the start. Where that distance exceeds `reach`, only the faces
+    /// within `reach` are searched (few boxes come that close to a point far from the
+    /// surface), and if there are none the hint face's closest point is the answer.
+    pub(super) fn closest_face_near(
+        &self,
+        p: &Point3<f64>,
+        face: Option<u32>,
+        reach: f64,
+    ) -> Option<(Point3<f64>, u32)> {
+        let hinted = face.and_then(|f| {
+            let tri = self.triangles.get(f as usize)?;
+            Some((closest_on_triangle(p, tri), f))
+        });
+        let Some((q, f)) = hinted else {
+            return self.closest_bounded(p, f64::INFINITY);
+        };
+        let d2 = (q - p).norm_squared();
+        if d2 <= reach * reach {
+            return self.closest_bounded(p, d2);
+        }
+        self.closest_within(p, reach * reach).or(Some((q, f)))
+    }
+
+    /// The closest face point to `p` and its face, searched among the faces nearer than
+    /// a squared distance `start2` (plus the relative [`HINT_SLACK`]: a hint rounded in
+    /// its last bits still bounds the search), else among all.
+    fn closest_bounded(&self, p: &Point3<f64>, start2: f64) -> Option<(Point3<f64>, u32)> {
         if self.triangles.is_empty() {
             return None;
         }
-        let start = hint.map_or(f64::INFINITY, |h| {
-            ((h - p).norm() * (1.0 + HINT_SLACK)).powi(2)
-        });
+        let start = start2 * (1.0 + HINT_SLACK).powi(2);
         match self.closest_within(p, start) {
             Some(c) => Some(c),
             None if start.is_finite() => self.closest_within(p, f64::INFINITY),
@@ -124,10 +156,11 @@ impl TriangleBvh {
         }
     }
 
-    /// The closest face point to `p` among those nearer than `√bound2` (`None` if none).
-    fn closest_within(&self, p: &Point3<f64>, bound2: f64) -> Option<Point3<f64>> {
-        let mut best: Option<(f64, Point3<f64>)> = None;
-        let bound = |best: &Option<(f64, Point3<f64>)>| best.map_or(bound2, |(d2, _)| d2);
+    /// The closest face point to `p` among those nearer than `√bound2`, and its face
+    /// (`None` if none).
+    fn closest_within(&self, p: &Point3<f64>, bound2: f64) -> Option<(Point3<f64>, u32)> {
+        let mut best: Option<(f64, Point3<f64>, u32)> = None;
+        let bound = |best: &Option<(f64, Point3<f64>, u32)>| best.map_or(bound2, |b| b.0);
         let mut stack = vec![(0u32, self.nodes[0].bounds.distance2(p))];
         while let Some((index, box_d2)) = stack.pop() {
             if box_d2 >= bound(&best) {
@@ -135,11 +168,14 @@ impl TriangleBvh {
             }
             let node = &self.nodes[index as usize];
             if node.count > 0 {
-                for tri in self.leaf(node) {
+                for (k, tri) in self.leaf(node).iter().enumerate() {
+                    if triangle_box_distance2(p, tri) >= bound(&best) {
+                        continue;
+                    }
                     let q = closest_on_triangle(p, tri);
                     let d2 = (q - p).norm_squared();
                     if d2 < bound(&best) {
-                        best = Some((d2, q));
+                        best = Some((d2, q, node.first + k as u32));
                     }
                 }
                 continue;
@@ -154,7 +190,7 @@ impl TriangleBvh {
             stack.push(far);
             stack.push(near);
         }
-        best.map(|(_, q)| q)
+        best.map(|(_, q, f)| (q, f))
     }
 
     /// The smallest `t ≥ 0` at which `o + t d` hits a triangle (Möller–Trumbore).
@@ -283,6 +319,14 @@ pub(super) fn closest_on_triangle(p: &Point3<f64>, [a, b, c]: &[Point3<f64>; 3])
     }
     let denom = 1.0 / (va + vb + vc);
     a + ab * (vb * denom) + ac * (vc * denom)
+}
+
+/// Squared distance from `p` to the bounding box of triangle `abc`: a lower bound on the
+/// squared distance to the triangle that costs a few comparisons.
+#[inline]
+fn triangle_box_distance2(p: &Point3<f64>, [a, b, c]: &[Point3<f64>; 3]) -> f64 {
+    let (lo, hi) = (a.inf(b).inf(c), a.sup(b).sup(c));
+    (p.coords - p.coords.sup(&lo.coords).inf(&hi.coords)).norm_squared()
 }
 
 /// The closest point of segment `se` to `p` (a point if `s = e`).

@@ -81,6 +81,24 @@ impl MeshShape {
         self.index.closest_point_near(p, Some(hint)).unwrap_or(*p)
     }
 
+    /// [`MeshShape::closest_point`] and the face it lies on, for a sweep of nearby
+    /// points: the search starts from `face`, the face of the previous point's answer
+    /// (`None`: no hint; the face is an opaque index, only for the next call), whose
+    /// distance bounds it. Exact wherever the surface is within `reach` of `p` (local
+    /// units); where it is not, the closest point of the hint face, a surface point
+    /// farther than `reach` (no closer than the exact answer), which costs a fraction of
+    /// an exact query far from a finely tessellated surface.
+    pub fn closest_point_from_face(
+        &self,
+        p: &Point3<f64>,
+        face: Option<u32>,
+        reach: f64,
+    ) -> (Point3<f64>, u32) {
+        self.index
+            .closest_face_near(p, face, reach)
+            .unwrap_or((*p, 0))
+    }
+
     /// The smallest `t ≥ 0` with `o + t d` on a face (`t` in units of `d`), or `None`.
     /// Rays lying in a face's plane do not hit that face (Möller–Trumbore convention).
     pub fn ray_intersect(&self, o: &Point3<f64>, d: &Vector3<f64>) -> Option<f64> {

@@ -1075,3 +1075,41 @@ fn closest_point_from_a_hint_is_the_exact_distance() {
         }
     }
 }
+
+#[test]
+fn closest_point_from_a_face_is_exact_within_reach_and_a_bound_beyond() {
+    // The same lumpy icosphere swept along lines, each query starting from the previous
+    // answer's face: within `reach` of the surface the exact distance, beyond it a
+    // surface point no closer than the exact one (and farther than `reach`).
+    let mut mesh = icosphere(1.0, 3);
+    for (k, v) in mesh.vertices.iter_mut().enumerate() {
+        *v = Point3::from(v.coords * (1.0 + 0.2 * ((k * 7919) % 13) as f64 / 13.0));
+    }
+    let shape = MeshShape::new("lumpy", mesh.clone()).unwrap();
+    let reach = 0.3;
+    let mut r = rng(6);
+    let (mut exact, mut bounded) = (0, 0);
+    for _ in 0..40 {
+        let (a, b) = (random_point(&mut r, 2.5), random_point(&mut r, 2.5));
+        let mut face = None;
+        for t in 0..25 {
+            let p = a + (b - a) * (t as f64 / 24.0);
+            let brute = mesh_brute_distance(&mesh, &p);
+            let (c, f) = shape.closest_point_from_face(&p, face, reach);
+            face = Some(f);
+            assert!(mesh_residual(&mesh, &c) < 1e-9, "{c} is off the surface");
+            let d = (p - c).norm();
+            if brute <= reach {
+                assert!((d - brute).abs() < 1e-12, "{p}: {d} against {brute}");
+                exact += 1;
+            } else {
+                assert!(d >= brute - 1e-12 && d > reach, "{p}: {d} against {brute}");
+                bounded += 1;
+            }
+        }
+    }
+    assert!(
+        exact > 100 && bounded > 100,
+        "{exact} exact, {bounded} bounded"
+    );
+}

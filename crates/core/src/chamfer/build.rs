@@ -73,8 +73,8 @@ pub(super) fn check_candidate_count(n: usize) -> Result<()> {
 }
 
 /// g_i for every candidate: sum over its samples of the squared distance to the nearest
-/// input point (thesis algorithm 4).
-fn primitive_coefficients(
+/// input point (thesis algorithm 4; squared scene units), in parallel over candidates.
+pub(crate) fn primitive_coefficients(
     cloud_index: &PointIndex,
     geometry: &impl CandidateGeometry,
     progress: &dyn Progress,

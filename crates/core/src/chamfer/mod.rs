@@ -40,6 +40,7 @@ pub(crate) mod test_problems;
 #[cfg(test)]
 mod tests;
 
+pub(crate) use build::primitive_coefficients;
 pub use coefficients::Coefficients;
 pub use dominance::Reduced;
 pub use eval::Evaluator;

@@ -213,10 +213,24 @@ const SAME_ANSWER_DISPLACEMENT: f64 = 0.05;
 fn margin_of(context: &Context, unexplained: &Unexplained, pose: &Pose) -> f64 {
     let primitive = Primitive::new(context.shape.clone(), *pose);
     let inlier = context.options.inlier_distance * context.size * pose.scale;
-    let sensors = unexplained.sensors.as_deref();
+    // Points the distance grid puts surely beyond the shell count neither way: left out
+    // before the exact test (most of a cluttered cloud).
+    let reach = confidence::SHELL_FACTOR * inlier / pose.scale;
+    let maybe: Vec<usize> = (0..unexplained.points.len())
+        .filter(|&i| {
+            !context
+                .grid
+                .surely_beyond(&pose.to_local(&unexplained.points[i]), reach)
+        })
+        .collect();
+    let points: Vec<Point3<f64>> = maybe.iter().map(|&i| unexplained.points[i]).collect();
+    let sensors: Option<Vec<Point3<f64>>> = unexplained
+        .sensors
+        .as_ref()
+        .map(|s| maybe.iter().map(|&i| s[i]).collect());
     confidence::margin(confidence::support(
-        &unexplained.points,
-        sensors,
+        &points,
+        sensors.as_deref(),
         &primitive,
         inlier,
     ))

@@ -16,7 +16,8 @@ use crate::spatial::PointIndex;
 /// Distance to a mesh surface from a regular grid of closest points, in the mesh's local
 /// frame.
 ///
-/// Every grid node stores its exact closest surface point; a query trilinearly
+/// Every grid node within the padding of the surface stores its exact closest surface
+/// point (a node farther away, a surface point no closer than that); a query trilinearly
 /// interpolates those points and measures the distance to the result. Where the
 /// closest-point map is affine (near a flat piece of surface) this is exact; near curved
 /// surface the error is of order `cell² / curvature radius`, far below the cell size, so
@@ -30,6 +31,8 @@ pub struct DistanceGrid {
     mesh_lo: Point3<f64>,
     mesh_hi: Point3<f64>,
     cell: f64,
+    /// The padding about the mesh's box within which nodes are exact (local units).
+    pad: f64,
     dims: [usize; 3],
     closest: Vec<[f32; 3]>,
 }
@@ -50,20 +53,19 @@ impl DistanceGrid {
         let (lo, hi) = (lo - Vector3::repeat(pad), hi + Vector3::repeat(pad));
         let cell = (hi - lo).max() / cells.max(2) as f64;
         let dims = [0, 1, 2].map(|a| ((hi[a] - lo[a]) / cell).ceil() as usize + 1);
-        // Row by row along x, each query starting from the previous cell's answer (a
-        // bound within one cell of the truth), the rows in parallel.
+        // Row by row along x, each query starting from the face of the previous cell's
+        // answer (its distance bounds the search), the rows in parallel. Exact within
+        // `pad` of the surface, what the largest kernel can see; farther, a surface
+        // point no closer than the exact one (a bound, as beyond the grid).
         let closest: Vec<[f32; 3]> = (0..dims[1] * dims[2])
             .into_par_iter()
             .flat_map_iter(|row| {
                 let (j, l) = (row % dims[1], row / dims[1]);
-                let mut previous: Option<Point3<f64>> = None;
+                let mut face = None;
                 (0..dims[0]).map(move |i| {
                     let p = lo + Vector3::new(i as f64, j as f64, l as f64) * cell;
-                    let c = match &previous {
-                        Some(h) => mesh.closest_point_near(&p, h),
-                        None => mesh.closest_point(&p),
-                    };
-                    previous = Some(c);
+                    let (c, f) = mesh.closest_point_from_face(&p, face, pad);
+                    face = Some(f);
                     [c.x as f32, c.y as f32, c.z as f32]
                 })
             })
@@ -73,6 +75,7 @@ impl DistanceGrid {
             mesh_lo,
             mesh_hi,
             cell,
+            pad,
             dims,
             closest,
         }
@@ -88,6 +91,21 @@ impl DistanceGrid {
     #[inline]
     pub fn box_distance(&self, p: &Point3<f64>) -> f64 {
         (p.coords - p.coords.sup(&self.mesh_lo.coords).inf(&self.mesh_hi.coords)).norm()
+    }
+
+    /// Whether the exact surface distance of `p` (local frame) is surely above `r` (local
+    /// units), from [`DistanceGrid::distance`] at a few operations' cost; `false` means
+    /// "maybe not". Where the exact distance `d` is at most `r`, the 8 nodes about `p`
+    /// lie within `r + √3 c` of the surface (`c` the cell), inside the padding where
+    /// nodes are exact when `r < pad − √3 c`, and each node's closest point is within
+    /// `d + 2√3 c` of `p`, so the interpolated distance is at most `d + 2√3 c`: above
+    /// `r + 2√3 c` it proves `d > r`. For a larger `r` it claims nothing.
+    pub fn surely_beyond(&self, p: &Point3<f64>, r: f64) -> bool {
+        let corner = 3f64.sqrt() * self.cell;
+        if r >= self.pad - corner {
+            return false;
+        }
+        self.box_distance(p) > r || self.distance(p) > r + 2.0 * corner
     }
 
     /// The tabulated closest surface point of the grid node nearest `p` (local frame,
@@ -187,52 +205,40 @@ impl CandidateGeometry for Particles {
     }
 }
 
-/// The explicit outlier primitive of thesis §6.3.3: points uniformly filling an
-/// axis-aligned box (the scene's bounding box).
-///
-/// Its samples are `count` uniform random points of the box. Its continuous "surface
-/// distance" to a point `y` inside the box is the **expected** squared distance from a
-/// point to its nearest sample for this density ρ = count / volume,
-/// `E[r²] = Γ(5/3) · (4πρ/3)^(−2/3)` (Poisson approximation), plus the squared distance
-/// to the box for points outside it. It is the scale against which a particle must
-/// explain a point: a particle gains on `y` only where it is closer than that.
-#[derive(Debug)]
-pub struct OutlierBox {
+/// The outlier level of thesis §6.3.3 without its samples: the expected squared
+/// distance from a point of an axis-aligned box (the scene's bounding box) to the
+/// nearest of `count` uniform samples of it, `E[r²] = Γ(5/3) · (4πρ/3)^(−2/3)` for the
+/// density ρ = count / volume (Poisson approximation). It is the scale against which a
+/// particle must explain a point: a particle gains on `y` only where it is closer than
+/// that. The filter's rounds need only this; [`OutlierBox`] adds the samples for the
+/// chamfer solve.
+#[derive(Debug, Clone, Copy)]
+pub struct OutlierLevel {
     lo: Point3<f64>,
     hi: Point3<f64>,
-    samples: Vec<Point3<f64>>,
-    index: PointIndex,
+    /// Uniform samples of the box for the density.
+    count: usize,
     expected: f64,
 }
 
 /// Γ(5/3).
 const GAMMA_5_3: f64 = 0.902_745_292_950_934;
 
-impl OutlierBox {
-    /// A box `[lo, hi]` (scene units) filled with uniform samples whose expected squared
+impl OutlierLevel {
+    /// The box `[lo, hi]` (scene units) at the density whose expected squared
     /// nearest-sample distance is `kernel²` (`kernel` in scene units); the sample count
-    /// is clamped to `1..=max_samples`, and the expectation follows the actual count.
-    pub fn new(
-        lo: Point3<f64>,
-        hi: Point3<f64>,
-        kernel: f64,
-        max_samples: usize,
-        rng: &mut impl Rng,
-    ) -> Self {
+    /// is clamped to `1..=max_samples`, and the expectation follows the clamped count.
+    pub fn new(lo: Point3<f64>, hi: Point3<f64>, kernel: f64, max_samples: usize) -> Self {
         let volume = (hi - lo).iter().map(|e| e.max(1e-12)).product::<f64>();
         // E[r²] = Γ(5/3)(4πρ/3)^(−2/3)  ⇔  ρ = (3 / 4π) (Γ(5/3) / E[r²])^(3/2).
         let rho = 3.0 / (4.0 * std::f64::consts::PI) * (GAMMA_5_3 / (kernel * kernel)).powf(1.5);
         let count = ((rho * volume).round() as usize).clamp(1, max_samples.max(1));
-        let samples: Vec<Point3<f64>> = (0..count)
-            .map(|_| lo + (hi - lo).map(|e| e * rng.random::<f64>()))
-            .collect();
         let rho = count as f64 / volume;
         let expected = GAMMA_5_3 * (4.0 * std::f64::consts::PI * rho / 3.0).powf(-2.0 / 3.0);
-        OutlierBox {
+        OutlierLevel {
             lo,
             hi,
-            index: PointIndex::new(&samples),
-            samples,
+            count,
             expected,
         }
     }
@@ -240,6 +246,40 @@ impl OutlierBox {
     /// Expected squared nearest-sample distance inside the box (scene units²).
     pub fn expected_distance(&self) -> f64 {
         self.expected
+    }
+
+    /// The outlier primitive's "surface distance" to `y` (scene units²): the expected
+    /// squared nearest-sample distance plus the squared distance to the box for points
+    /// outside it.
+    #[inline]
+    pub fn cost(&self, y: &Point3<f64>) -> f64 {
+        let out = (y.coords - y.coords.sup(&self.lo.coords).inf(&self.hi.coords)).norm_squared();
+        self.expected + out
+    }
+}
+
+/// The explicit outlier primitive of thesis §6.3.3 as a candidate of the chamfer:
+/// [`OutlierLevel::count`] uniform random points of the box. Its continuous "surface
+/// distance" is [`OutlierLevel::cost`].
+#[derive(Debug)]
+pub struct OutlierBox {
+    level: OutlierLevel,
+    samples: Vec<Point3<f64>>,
+    index: PointIndex,
+}
+
+impl OutlierBox {
+    /// The samples of `level`, drawn from `rng`.
+    pub fn new(level: OutlierLevel, rng: &mut impl Rng) -> Self {
+        let (lo, hi) = (level.lo, level.hi);
+        let samples: Vec<Point3<f64>> = (0..level.count)
+            .map(|_| lo + (hi - lo).map(|e| e * rng.random::<f64>()))
+            .collect();
+        OutlierBox {
+            level,
+            index: PointIndex::new(&samples),
+            samples,
+        }
     }
 }
 
@@ -255,17 +295,14 @@ impl CandidateGeometry for OutlierBox {
         out.extend_from_slice(&self.samples);
     }
     fn bounding_ball(&self, _: usize) -> (Point3<f64>, f64) {
-        (
-            nalgebra::center(&self.lo, &self.hi),
-            (self.hi - self.lo).norm() / 2.0,
-        )
+        let (lo, hi) = (self.level.lo, self.level.hi);
+        (nalgebra::center(&lo, &hi), (hi - lo).norm() / 2.0)
     }
     fn nearest_sample(&self, _: usize, y: &Point3<f64>) -> (u32, f64) {
         self.index.nearest(y).unwrap_or((0, f64::INFINITY))
     }
     fn surface_distance(&self, _: usize, y: &Point3<f64>) -> f64 {
-        let out = (y.coords - y.coords.sup(&self.lo.coords).inf(&self.hi.coords)).norm_squared();
-        self.expected + out
+        self.level.cost(y)
     }
     fn nearest_samples(
         &self,
@@ -332,5 +369,44 @@ impl<A: CandidateGeometry, B: CandidateGeometry> CandidateGeometry for Chain<'_,
         out: &mut Vec<(u32, f64)>,
     ) {
         chained!(self, i, nearest_samples(y, k, out))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::synth::asymmetric_object;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+
+    /// `surely_beyond` never claims a point within `r` of the surface (checked against
+    /// the exact distance), and does claim most points well beyond it.
+    #[test]
+    fn the_grid_proves_only_true_distance_bounds() {
+        let mesh = asymmetric_object();
+        let (lo, hi) = crate::cloud::bounds_of(&mesh.mesh.vertices).expect("vertices");
+        let size = (hi - lo).norm();
+        let pad = 0.25 * size;
+        let grid = DistanceGrid::new(&mesh, 24, pad);
+        let corner = 3f64.sqrt() * grid.cell();
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let (mut far, mut claimed) = (0, 0);
+        for _ in 0..4000 {
+            // Points over the grid and a little beyond it.
+            let p = lo + (hi - lo + Vector3::repeat(3.0 * pad)).map(|e| e * rng.random::<f64>())
+                - Vector3::repeat(1.5 * pad);
+            let exact = (mesh.closest_point(&p) - p).norm();
+            for r in [0.01 * size, 0.04 * size, 0.1 * size] {
+                let beyond = grid.surely_beyond(&p, r);
+                assert!(!beyond || exact > r, "{p}: exact {exact}, r {r}");
+                if exact > r + 4.0 * corner {
+                    far += 1;
+                    claimed += beyond as usize;
+                }
+            }
+        }
+        assert!(claimed as f64 > 0.9 * far as f64, "{claimed} of {far}");
+        // No claim for a radius the exact padding cannot back.
+        assert!(!grid.surely_beyond(&(hi + Vector3::repeat(10.0 * size)), pad));
     }
 }

@@ -18,17 +18,18 @@
 //! **Every round:**
 //!
 //! 1. the particles form the candidate set, together with an explicit **outlier
-//!    primitive** (points uniformly filling the scene's bounding box,
-//!    `geometry.rs`) and any objects already found;
-//! 2. the probabilistic chamfer (existence model, exact surface distances) is built over
-//!    them and [`crate::solve::solve`] gives every particle's existence probability;
-//! 3. each particle is measured by the binary chamfer decrease when it is added to the
+//!    primitive** (the scene's bounding box uniformly filled at the density whose
+//!    expected nearest-sample distance is the round's kernel, `geometry.rs`) and any
+//!    objects already found;
+//! 2. each particle is measured by the binary chamfer decrease when it is added to the
 //!    background (outlier primitive + found objects): `Δ_i = Σ_y max(0, b(y) − d_i(y))
-//!    − w_prim g_i` (squared scene units, the sum over all cloud points), the
-//!    "exp(−Δloss)" weighting. Existence alone is a poor weight: the existence model
+//!    − w_prim g_i` (squared scene units, the sum over all cloud points; `g_i` the
+//!    chamfer's primitive term), the "exp(−Δloss)" weighting. The existence
+//!    probabilities of the continuous solve are not the weight: the existence model
 //!    keeps one of two near-identical particles and zeroes the other, which would
-//!    collapse the population onto one survivor;
-//! 4. weights `∝ exp(Δ_i / T)`, with `T` set so that the effective sample size is a fixed
+//!    collapse the population onto one survivor; so the rounds build only `g` and no
+//!    solve ([`score_poses`] gives both, for study);
+//! 3. weights `∝ exp(Δ_i / T)`, with `T` set so that the effective sample size is a fixed
 //!    share of the population ([`RegisterOptions::ess`]); the best particle is kept as
 //!    is, the leaders are moved downhill by a few trimmed-ICP steps, the rest is
 //!    resampled (systematic) and moved at random on SO(3) (exponential map of a Gaussian
@@ -103,7 +104,8 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::atlas::{MeshShape, Shape};
 use crate::progress::Progress;
-use crate::{Error, PointCloud, Pose, Result};
+use crate::spatial::PointIndex;
+use crate::{Error, PointCloud, Pose, Result, Stopwatch};
 use choice::Unexplained;
 use geometry::DistanceGrid;
 use particle_filter::{Context, FilterResult};
@@ -166,6 +168,7 @@ fn context<'a>(
     };
     let context = Context {
         cloud: &cloud.points,
+        cloud_index: PointIndex::new(&cloud.points),
         grid: grid.clone(),
         mesh: mesh.clone(),
         hull: samples.iter().map(|p| p - centre).collect(),
@@ -200,7 +203,7 @@ pub fn score_poses(
 ) -> Result<(Vec<f64>, Vec<f64>)> {
     let (context, _) = context(cloud, mesh, options)?;
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
-    let m = context.measure(found, poses, kernel, options.min_support, true, &mut rng)?;
+    let m = context.measure(found, poses, kernel, options.min_support, &mut rng)?;
     Ok((m.score, m.existence))
 }
 
@@ -253,8 +256,10 @@ pub fn register(
     progress: &dyn Progress,
 ) -> Result<Registration> {
     let start = Instant::now();
+    let mut clock = Stopwatch::start();
     check_count(options.count, cloud.len(), options.min_support)?;
     let (context, flips) = context(cloud, mesh, options)?;
+    clock.lap("model");
     let size = context.size;
     let mut rng = ChaCha8Rng::seed_from_u64(options.seed);
     let wanted = options.count.unwrap_or(options.max_objects);
@@ -263,14 +268,11 @@ pub fn register(
     // The points no object found so far explains: each new object's margin is measured
     // on them, so a second copy of a found object has no support.
     let mut unexplained = Unexplained::all(cloud);
+    let hypotheses = pair_hypotheses(&context, cloud, mesh);
+    clock.lap("point_pairs");
     // Polished once: each search measures them on the points still unexplained.
-    let pair_tries = choice::polish_all(
-        &context,
-        cloud,
-        mesh,
-        &pair_hypotheses(&context, cloud, mesh),
-        1.0,
-    );
+    let pair_tries = choice::polish_all(&context, cloud, mesh, &hypotheses, 1.0);
+    clock.lap("polish");
     for _ in 0..wanted {
         let found: Vec<Pose> = objects.iter().map(|o| o.primitive.pose).collect();
         let object = find_object(
@@ -280,7 +282,7 @@ pub fn register(
             (mesh, &flips),
             &pair_tries,
             (&found, &mut rng),
-            progress,
+            (progress, &mut clock),
         )?;
         if object.existence < options.min_confidence {
             if options.count.is_none() {
@@ -298,6 +300,7 @@ pub fn register(
         objects,
         model_size: size,
         seconds: start.elapsed().as_secs_f64(),
+        timings: clock.times,
     })
 }
 
@@ -313,11 +316,13 @@ fn find_object(
     (mesh, flips): (&MeshShape, &[Pose]),
     pair_tries: &[choice::Polished],
     (found, rng): (&[Pose], &mut ChaCha8Rng),
-    progress: &dyn Progress,
+    (progress, clock): (&dyn Progress, &mut Stopwatch),
 ) -> Result<FoundObject> {
     let options = context.options;
     let mut tries = choice::measure_all(context, unexplained, pair_tries);
-    if let Some(answer) = choice::choose(context, unexplained, &tries)
+    let sure = choice::choose(context, unexplained, &tries);
+    clock.lap("measure");
+    if let Some(answer) = sure
         && answer.existence >= options.accept_without_search
     {
         progress.advance(options.max_rounds as u64);
@@ -332,6 +337,7 @@ fn find_object(
         ));
     }
     let filtered = context.run(found, rng, progress)?;
+    clock.lap("filter");
     let scale = filtered.pose.scale;
     let starts = symmetry_starts(flips, &filtered);
     tries.extend(choice::settle_all(
@@ -344,6 +350,7 @@ fn find_object(
     ));
     let answer =
         choice::choose(context, unexplained, &tries).expect("the filter's answer is a try");
+    clock.lap("settle");
     Ok(choice::found_object(
         cloud,
         tries,

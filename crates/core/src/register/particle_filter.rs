@@ -19,11 +19,11 @@ use crate::atlas::MeshShape;
 use crate::chamfer::{ChamferOptions, PointModel};
 use crate::lattice::Template;
 use crate::progress::Progress;
+use crate::spatial::PointIndex;
 use crate::{Pose, Result};
 
 #[cfg(test)]
 pub(crate) use initial::random_rotation;
-pub(crate) use measurement::Measurement;
 pub use resampling::{systematic, tempered_weights};
 
 /// What one round of the filter saw.
@@ -37,8 +37,6 @@ pub struct RoundStats {
     /// Best measurement (loss decrease when the best particle is added to the
     /// background; squared scene units).
     pub best_score: f64,
-    /// Largest existence probability of a particle in the chamfer solution.
-    pub best_existence: f64,
     /// Effective sample size of the weights (particles).
     pub ess: f64,
 }
@@ -59,6 +57,8 @@ pub struct FilterResult {
 /// Fixed context of a search: cloud, model, scene box, objects already found.
 pub(crate) struct Context<'a> {
     pub cloud: &'a [Point3<f64>],
+    /// A kd-tree over `cloud`.
+    pub cloud_index: PointIndex,
     pub grid: Arc<DistanceGrid>,
     pub mesh: MeshShape,
     pub template_spacing: f64,
@@ -139,8 +139,7 @@ impl Context<'_> {
         for round in 0..o.max_rounds {
             let kernel =
                 self.size * (o.kernel_start * o.kernel_shrink.powi(round as i32)).max(o.kernel_end);
-            let Measurement { score, existence } =
-                self.measure(found, poses.clone(), kernel, o.search_support, false, rng)?;
+            let score = self.scores(found, poses.clone(), kernel, o.search_support);
             let (ib, &sb) = score
                 .iter()
                 .enumerate()
@@ -161,7 +160,6 @@ impl Context<'_> {
                 kernel,
                 particles: poses.len(),
                 best_score: sb,
-                best_existence: existence.iter().copied().fold(0.0, f64::max),
                 ess,
             });
             progress.advance(1);

@@ -6,7 +6,7 @@ use serde_json::Value;
 
 use super::particle_filter::RoundStats;
 use crate::fit::document::{PrimitiveEntry, ResultDoc};
-use crate::{Pose, Primitive};
+use crate::{Pose, Primitive, StageTimes};
 
 /// One object found by [`register`](super::register).
 #[derive(Debug, Clone)]
@@ -44,6 +44,10 @@ pub struct Registration {
     pub model_size: f64,
     /// Wall time (seconds).
     pub seconds: f64,
+    /// Wall time per stage (seconds): the model's distance grid and samples (`model`),
+    /// the point-pair hypotheses and their polish, and per search the tries' measure,
+    /// the particle filter and the settling of its answers (summed over searches).
+    pub timings: StageTimes,
 }
 
 impl Registration {

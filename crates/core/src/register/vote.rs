@@ -313,22 +313,31 @@ impl HistogramBins {
         hist
     }
 
-    /// 3 × 3 × 3 window sums of `hist` (separable box filter).
+    /// 3 × 3 × 3 window sums of `hist` (separable box filter: three passes of a 3-bin
+    /// sum along x, y and z, each bin's neighbours outside the grid counting 0).
     fn window_sums(&self, hist: &[f32]) -> Vec<f32> {
         let (nx, nxy) = self.strides();
         let mut window = hist.to_vec();
+        let mut src = vec![0.0f32; window.len()];
         for (axis, stride) in [(0, 1), (1, nx), (2, nxy)] {
-            let src = window.clone();
-            for (k, out) in window.iter_mut().enumerate() {
-                let i = (k / stride) % self.dims[axis];
-                let mut v = src[k];
-                if i > 0 {
-                    v += src[k - stride];
+            src.copy_from_slice(&window);
+            let n = self.dims[axis];
+            // Bins k = outer · (n · stride) + i · stride + inner, i along the axis.
+            for (out_block, src_block) in window
+                .chunks_exact_mut(n * stride)
+                .zip(src.chunks_exact(n * stride))
+            {
+                for i in 0..n {
+                    let row = &mut out_block[i * stride..(i + 1) * stride];
+                    if i > 0 {
+                        let before = &src_block[(i - 1) * stride..i * stride];
+                        row.iter_mut().zip(before).for_each(|(o, b)| *o += b);
+                    }
+                    if i + 1 < n {
+                        let after = &src_block[(i + 1) * stride..(i + 2) * stride];
+                        row.iter_mut().zip(after).for_each(|(o, a)| *o += a);
+                    }
                 }
-                if i + 1 < self.dims[axis] {
-                    v += src[k + stride];
-                }
-                *out = v;
             }
         }
         window

@@ -1,6 +1,6 @@
 //! The filter's measurement: each particle's binary chamfer decrease next to the
-//! background (outlier primitive and objects found), and the existence probabilities of
-//! the chamfer solve.
+//! background (outlier primitive and objects found), and on request the existence
+//! probabilities of the polished chamfer solve.
 
 use rand_chacha::ChaCha8Rng;
 use rayon::prelude::*;
@@ -8,44 +8,52 @@ use rayon::prelude::*;
 use super::Context;
 use crate::Pose;
 use crate::Result;
+use crate::chamfer::primitive_coefficients;
 use crate::chamfer::{CandidateGeometry, Coefficients};
 use crate::progress::Silent;
-use crate::register::geometry::{Chain, OutlierBox, Particles};
+use crate::register::geometry::{Chain, OutlierBox, OutlierLevel, Particles};
 use crate::solve::{Solution, SolverOptions, solve};
 
 /// What [`Context::measure`] returns for each pose.
 pub(crate) struct Measurement {
     /// Binary chamfer decrease when the pose alone joins the background (squared units).
     pub score: Vec<f64>,
-    /// Existence probability in the chamfer solve (with polish: exactly 0 when the
-    /// polished binary solution drops it, at least the threshold when it keeps it).
+    /// Existence probability in the polished chamfer solve: exactly 0 when the polished
+    /// binary solution drops it, at least the threshold when it keeps it.
     pub existence: Vec<f64>,
 }
 
 impl Context<'_> {
-    /// Existence probabilities of `poses` next to `found` and the outlier primitive (which
-    /// come first in the candidate set), and the measurement of every pose: the binary
-    /// chamfer decrease when it alone is added to the outlier primitive and `found`, `Σ_y
-    /// max(0, b(y) − d_i(y)) − w_prim g_i`, `b(y)` = the background's cost of `y`, with the
-    /// primitive weight calibrated for `support` points ([`Context::price`]) unless
+    /// The measurement of every pose of `poses` (the filter's weights): the binary
+    /// chamfer decrease when it alone is added to the outlier primitive (at the level of
+    /// `kernel`) and the objects `found`, `Σ_y max(0, b(y) − d_i(y)) − w_prim g_i`, `b(y)`
+    /// = the background's cost of `y`, with the primitive weight calibrated for `support`
+    /// points ([`Context::price`]) unless
     /// [`RegisterOptions::primitive_weight`](super::RegisterOptions::primitive_weight) is
-    /// set.
+    /// set. Only the primitive term `g` of the chamfer is needed: the point term enters
+    /// through the gains, over all points.
+    pub fn scores(&self, found: &[Pose], poses: Vec<Pose>, kernel: f64, support: f64) -> Vec<f64> {
+        let level = self.outlier_level(kernel);
+        let particles = Particles::new(self.template(), self.grid.clone(), poses);
+        let g = primitive_coefficients(&self.cloud_index, &particles, &Silent);
+        let background = Particles::new(self.template(), self.grid.clone(), found.to_vec());
+        self.scores_with(&level, &background, &particles, &g, support)
+            .0
+    }
+
+    /// [`Context::scores`] and each pose's existence probability in the polished chamfer
+    /// solve over the outlier primitive (its samples drawn from `rng`), the objects
+    /// `found` (which come first in the candidate set and always exist) and `poses`.
     pub fn measure(
         &self,
         found: &[Pose],
         poses: Vec<Pose>,
         kernel: f64,
         support: f64,
-        polish: bool,
         rng: &mut ChaCha8Rng,
     ) -> Result<Measurement> {
-        let outlier = OutlierBox::new(
-            self.lo,
-            self.hi,
-            kernel,
-            self.options.max_outlier_samples,
-            rng,
-        );
+        let level = self.outlier_level(kernel);
+        let outlier = OutlierBox::new(level, rng);
         let background = Particles::new(self.template(), self.grid.clone(), found.to_vec());
         let particles = Particles::new(self.template(), self.grid.clone(), poses);
         let fixed = Chain {
@@ -56,59 +64,76 @@ impl Context<'_> {
             a: &fixed,
             b: &particles,
         };
-        let options = self.chamfer(kernel);
-        let mut coeffs = Coefficients::build(self.cloud, &all, &options, &Silent)?;
+        let mut coeffs = Coefficients::build(self.cloud, &all, &self.chamfer(kernel), &Silent)?;
         let offset = fixed.len();
-        let n = particles.len();
-        let kernel2 = outlier.expected_distance();
-        let price = self.price(kernel2, support);
-        let weight = match self.options.primitive_weight {
-            Some(w) => w,
-            None => price / median(&coeffs.g[offset..]),
-        };
+        let (score, weight) = self.scores_with(
+            &level,
+            &background,
+            &particles,
+            &coeffs.g[offset..],
+            support,
+        );
         coeffs.options.primitive_weight = weight;
         // The outlier primitive and the objects already found always exist: they pay no
         // primitive term, so the solve never trades them away.
         coeffs.g[..offset].iter_mut().for_each(|g| *g = 0.0);
         let solver = SolverOptions {
-            polish,
+            polish: true,
             max_iterations: 100,
             initial: 1.0,
             ..Default::default()
         };
         let solution = solve(&coeffs, &solver, &Silent)?;
-        let cost = self.background_cost(&outlier, &background);
-        let gain = self.point_gains(&particles, &cost);
+        Ok(Measurement {
+            score,
+            existence: self.polished_existence(&solution)[offset..].to_vec(),
+        })
+    }
+
+    /// The outlier primitive at the level of `kernel` over the scene box.
+    fn outlier_level(&self, kernel: f64) -> OutlierLevel {
+        OutlierLevel::new(self.lo, self.hi, kernel, self.options.max_outlier_samples)
+    }
+
+    /// The scores of `particles` with primitive terms `g` (module docs of
+    /// [`Context::scores`]) and the primitive weight they were priced with.
+    fn scores_with(
+        &self,
+        level: &OutlierLevel,
+        background: &Particles,
+        particles: &Particles,
+        g: &[f64],
+        support: f64,
+    ) -> (Vec<f64>, f64) {
+        let kernel2 = level.expected_distance();
+        let weight = match self.options.primitive_weight {
+            Some(w) => w,
+            None => self.price(kernel2, support) / median(g),
+        };
+        let cost = self.background_cost(level, background);
+        let gain = self.point_gains(particles, &cost);
         // With a scale, clutter gains in proportion to the surface (scale²): each particle
         // is charged the clutter gain of its own area beyond that of the model at scale 1
         // (which the calibrated weight prices), or larger poses would win on clutter.
         let clutter = self.price(kernel2, 0.0);
-        let score = (0..n)
+        let score = (0..particles.len())
             .map(|i| {
                 let s = particles.set.poses[i].scale;
-                gain[i] - weight * coeffs.g[offset + i] - clutter * (s * s - 1.0)
+                gain[i] - weight * g[i] - clutter * (s * s - 1.0)
             })
             .collect();
-        let existence = if polish {
-            self.polished_existence(&solution)
-        } else {
-            solution.probability
-        };
-        Ok(Measurement {
-            score,
-            existence: existence[offset..].to_vec(),
-        })
+        (score, weight)
     }
 
     /// Each point's cost under the background (outlier primitive and found objects): its
     /// squared surface distance to the nearest of them (squared scene units).
-    fn background_cost(&self, outlier: &OutlierBox, background: &Particles) -> Vec<f64> {
+    fn background_cost(&self, level: &OutlierLevel, background: &Particles) -> Vec<f64> {
         self.cloud
             .par_iter()
             .map(|y| {
                 (0..background.len())
                     .map(|k| background.surface_distance(k, y))
-                    .fold(outlier.surface_distance(0, y), f64::min)
+                    .fold(level.cost(y), f64::min)
             })
             .collect()
     }

@@ -4,7 +4,7 @@ use super::*;
 use crate::atlas::Shape;
 use crate::register::particle_filter::random_rotation;
 use crate::synth::{RegistrationParams, asymmetric_object, registration};
-use rand::SeedableRng;
+use rand::{RngExt, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 
 /// With the true rotation, the best peak of a vote over the whole scene box is
@@ -106,4 +106,40 @@ fn bad_input_gives_no_peaks() {
         mean_shift(&index, &o, Vector3::zeros(), f64::NAN, 3).votes,
         0.0
     );
+}
+
+#[test]
+fn window_sums_are_the_brute_force_three_by_three_by_three_sums() {
+    let bins = HistogramBins {
+        ulo: [0, 0, 0],
+        dims: [5, 4, 3],
+    };
+    let mut rng = ChaCha8Rng::seed_from_u64(7);
+    let hist: Vec<f32> = (0..60)
+        .map(|_| (rng.random::<f64>() * 10.0).floor() as f32)
+        .collect();
+    let window = bins.window_sums(&hist);
+    let at = |x: i64, y: i64, z: i64| {
+        let inside = (0..5).contains(&x) && (0..4).contains(&y) && (0..3).contains(&z);
+        if inside {
+            hist[(x + 5 * (y + 4 * z)) as usize]
+        } else {
+            0.0
+        }
+    };
+    for z in 0..3i64 {
+        for y in 0..4i64 {
+            for x in 0..5i64 {
+                let mut expected = 0.0;
+                for d in 0..27i64 {
+                    expected += at(x + d % 3 - 1, y + (d / 3) % 3 - 1, z + d / 9 - 1);
+                }
+                assert_eq!(
+                    window[(x + 5 * (y + 4 * z)) as usize],
+                    expected,
+                    "bin {x} {y} {z}"
+                );
+            }
+        }
+    }
 }
