@@ -113,8 +113,10 @@ impl DistanceGrid {
     /// start an exact query from ([`MeshShape::closest_point_near`]).
     pub fn hint(&self, p: &Point3<f64>) -> Point3<f64> {
         let node = |a: usize| {
-            let x = ((p[a] - self.lo[a]) / self.cell).round();
-            (x.max(0.0) as usize).min(self.dims[a] - 1)
+            // Rounded half away from zero (for x ≥ 0; a negative x saturates to node 0),
+            // without a call to `round`, which baseline x86-64 does not inline.
+            let x = (p[a] - self.lo[a]) / self.cell + 0.5;
+            (x as usize).min(self.dims[a] - 1)
         };
         let (nx, nxy) = (self.dims[0], self.dims[0] * self.dims[1]);
         let v = self.closest[node(0) + node(1) * nx + node(2) * nxy];
@@ -130,7 +132,7 @@ impl DistanceGrid {
             let max = (self.dims[a] - 1) as f64;
             let x = ((p[a] - self.lo[a]) / self.cell).clamp(0.0, max);
             q[a] = self.lo[a] + x * self.cell;
-            let b = (x.floor() as usize).min(self.dims[a] - 2);
+            let b = (x as usize).min(self.dims[a] - 2); // x ≥ 0: truncation is floor
             base[a] = b;
             f[a] = x - b as f64;
         }

@@ -89,19 +89,26 @@ impl PpfModel {
         let step = SAMPLE_STEP * size;
         let (points, normals) = model_samples(mesh, step, NORMAL_RADIUS * size);
         let frames: Vec<_> = normals.iter().map(to_x_axis).collect();
-        let mut table = Vec::with_capacity(points.len() * points.len());
-        for (i, (p, n)) in points.iter().zip(&normals).enumerate() {
-            for (j, (q, m)) in points.iter().zip(&normals).enumerate() {
-                if i == j {
-                    continue;
-                }
-                if let Some(key) = feature_key(&(q - p), n, m, step, size) {
-                    let alpha = angle_about_x(&(frames[i] * (q - p)));
-                    table.push((key, i as u32, alpha as f32));
-                }
-            }
-        }
-        table.sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.cmp(&b.1)));
+        // Every ordered pair, the rows of m₁ in parallel; the votes count pairs, so the
+        // order of equal keys in the table does not matter.
+        let mut table: Vec<(u32, u32, f32)> = points
+            .par_iter()
+            .zip(&normals)
+            .enumerate()
+            .flat_map_iter(|(i, (p, n))| {
+                let frame = frames[i];
+                points
+                    .iter()
+                    .zip(&normals)
+                    .enumerate()
+                    .filter(move |(j, _)| *j != i)
+                    .filter_map(move |(_, (q, m))| {
+                        let key = feature_key(&(q - p), n, m, step, size)?;
+                        Some((key, i as u32, angle_about_x(&(frame * (q - p))) as f32))
+                    })
+            })
+            .collect();
+        table.par_sort_unstable_by(|a, b| a.0.cmp(&b.0).then(a.1.cmp(&b.1)));
         let keys = table.last().map_or(0, |e| e.0 as usize + 1);
         let mut starts = vec![0u32; keys + 1];
         for e in &table {
@@ -254,7 +261,8 @@ fn feature_key(
 /// [0, π]: the number of bin edges `cos(kπ/ANGLE_BINS)` above `c` (no `acos`: this runs
 /// for every scene pair).
 fn bin(c: f64) -> u32 {
-    ANGLE_EDGES.partition_point(|&edge| edge > c) as u32
+    // A count of all edges, not a binary search: no data-dependent branch.
+    ANGLE_EDGES.iter().map(|&edge| (edge > c) as u32).sum()
 }
 
 /// `cos(kπ/ANGLE_BINS)` for k = 1 … ANGLE_BINS − 1, decreasing.
@@ -269,9 +277,10 @@ static ANGLE_EDGES: std::sync::LazyLock<Vec<f64>> = std::sync::LazyLock::new(|| 
 /// data-dependent branch there mispredicts a quarter of the time).
 #[inline]
 fn theta_bin(theta: f64) -> usize {
-    const BINS: i64 = THETA_BINS as i64;
-    let k = ((theta + PI) * (THETA_BINS as f64 / (2.0 * PI))).floor() as i64;
-    ((k + 2 * BINS) % BINS) as usize
+    // theta + 3π > 0, so truncation is floor (no call to `floor`, which baseline
+    // x86-64 does not inline); the extra turn drops out of the remainder.
+    let k = ((theta + 3.0 * PI) * (THETA_BINS as f64 / (2.0 * PI))) as usize;
+    k % THETA_BINS
 }
 
 /// The angle of `v` about +x, from +y towards +z.

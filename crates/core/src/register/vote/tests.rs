@@ -143,3 +143,32 @@ fn window_sums_are_the_brute_force_three_by_three_by_three_sums() {
         }
     }
 }
+
+#[test]
+fn forward_window_sums_are_the_brute_force_sums() {
+    let n = 6;
+    let mut rng = ChaCha8Rng::seed_from_u64(8);
+    let count: Vec<u32> = (0..n * n * n)
+        .map(|_| (rng.random::<f64>() * 5.0) as u32)
+        .collect();
+    let sums = forward_window_sums(&count, n);
+    for z in 0..n - 2 {
+        for y in 0..n - 2 {
+            for x in 0..n - 2 {
+                let expected: u32 = (0..27)
+                    .map(|d| count[(x + d % 3) + n * ((y + (d / 3) % 3) + n * (z + d / 9))])
+                    .sum();
+                assert_eq!(sums[x + n * (y + n * z)], expected, "window at {x} {y} {z}");
+            }
+        }
+    }
+}
+
+#[test]
+fn floor_without_a_call_is_floor() {
+    for v in [
+        -2.5, -2.0, -1e-12, 0.0, 1e-12, 0.999_999, 1.0, 3.7, -1e15, 1e15,
+    ] {
+        assert_eq!(floor_to_i64(v), v.floor() as i64, "{v}");
+    }
+}
