@@ -260,8 +260,8 @@ impl OutlierLevel {
     }
 }
 
-/// The explicit outlier primitive of thesis §6.3.3 as a candidate of the chamfer:
-/// [`OutlierLevel::count`] uniform random points of the box. Its continuous "surface
+/// The explicit outlier primitive of thesis §6.3.3 as a candidate of the chamfer: as
+/// many uniform random points of the box as its [`OutlierLevel`]'s density asks for. Its continuous "surface
 /// distance" is [`OutlierLevel::cost`].
 #[derive(Debug)]
 pub struct OutlierBox {

@@ -371,6 +371,7 @@ fn pair_hypotheses(context: &Context, cloud: &PointCloud, mesh: &MeshShape) -> V
     }
     ppf::PpfModel::new(mesh, context.size).hypotheses(
         &cloud.points,
+        &context.cloud_index,
         cloud.sensors.as_deref(),
         options.pair_hypotheses,
     )

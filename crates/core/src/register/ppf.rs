@@ -137,18 +137,18 @@ impl PpfModel {
     }
 
     /// At most `count` pose hypotheses for the object in `cloud` (module docs), best
-    /// first; `scale` is the model's scale in the scene.
+    /// first; `index` is a kd-tree over exactly `cloud`.
     pub(super) fn hypotheses(
         &self,
         cloud: &[Point3<f64>],
+        index: &PointIndex,
         sensors: Option<&[Point3<f64>]>,
         count: usize,
     ) -> Vec<Pose> {
         if cloud.len() < 3 || count == 0 || self.points.is_empty() {
             return Vec::new();
         }
-        let index = PointIndex::new(cloud);
-        let normals = scene_normals(cloud, &index);
+        let normals = scene_normals(cloud, index);
         let orientations: Vec<Vec<Normal>> = match sensors {
             Some(s) => vec![oriented(cloud, &normals, |i| s[i], 1.0)],
             None => [1.0, -1.0]
@@ -158,7 +158,7 @@ impl PpfModel {
         };
         let mut votes: Vec<(u32, usize, Pose)> = orientations
             .iter()
-            .flat_map(|normals| self.vote(cloud, &index, normals))
+            .flat_map(|normals| self.vote(cloud, index, normals))
             .collect();
         // Most votes first; ties: the earlier reference (then the first orientation).
         votes.sort_by_key(|v| std::cmp::Reverse(v.0));
@@ -435,7 +435,7 @@ mod tests {
             Vector3::new(0.3, -0.2, 0.1),
         );
         let cloud: Vec<Point3<f64>> = model.points.iter().map(|p| truth.to_scene(p)).collect();
-        let found = model.hypotheses(&cloud, None, 3);
+        let found = model.hypotheses(&cloud, &PointIndex::new(&cloud), None, 3);
         let best = found[0];
         assert!(
             best.rotation.angle_to(&truth.rotation).to_degrees() < 10.0,

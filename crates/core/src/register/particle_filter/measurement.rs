@@ -64,7 +64,9 @@ impl Context<'_> {
             a: &fixed,
             b: &particles,
         };
-        let mut coeffs = Coefficients::build(self.cloud, &all, &self.chamfer(kernel), &Silent)?;
+        let options = self.chamfer(kernel);
+        let mut coeffs =
+            Coefficients::build_indexed(self.cloud, &self.cloud_index, &all, &options, &Silent)?;
         let offset = fixed.len();
         let (score, weight) = self.scores_with(
             &level,
