@@ -9,7 +9,10 @@
 //! 2. **Thresholding** at [`SolverOptions::threshold`].
 //! 3. **Discrete polish** (`polish.rs` over the incremental state of
 //!    `polish_state.rs`): local moves while the exact binary chamfer decreases (removals
-//!    also when it stays equal, so redundant copies go).
+//!    also when it stays equal, so redundant copies go). Replace chains are tried in
+//!    parallel on copies of the scene, and trials known to fail again are skipped
+//!    (`polish_memo.rs`); the result is that of trying every move in turn, on any number
+//!    of threads.
 //!
 //! The box is the default because most candidates end exactly at 0 or 1, which the
 //! projected method reaches and then drops from the quasi-Newton model, while the logit
@@ -40,6 +43,7 @@
 
 mod lbfgs;
 mod polish;
+mod polish_memo;
 mod polish_state;
 
 use lbfgs::{LbfgsRun, lbfgs};

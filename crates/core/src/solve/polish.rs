@@ -1,7 +1,10 @@
 //! The discrete polish: local search on the exact binary chamfer after thresholding, by
 //! single flips, add-and-prune moves and replace chains over a [`PolishState`].
 
-use super::polish_state::PolishState;
+use rayon::prelude::*;
+
+use super::polish_memo::{Trial, TrialMemo};
+use super::polish_state::{PolishState, PolishTables};
 use crate::chamfer::Coefficients;
 
 /// Discrete polish of the binary scene `exists` on the binary chamfer (same entries, same
@@ -34,7 +37,9 @@ pub fn polish(
     moves: Moves,
 ) -> usize {
     let n = coeffs.candidates();
-    let mut state = PolishState::new(coeffs, exists);
+    let tables = PolishTables::new(coeffs);
+    let mut state = PolishState::new(coeffs, &tables, exists);
+    let mut memo = TrialMemo::new(n);
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| probability[a].total_cmp(&probability[b]).then(a.cmp(&b)));
     let mut dirty = vec![true; n];
@@ -42,29 +47,20 @@ pub fn polish(
     for _ in 0..max_sweeps {
         let before = flips;
         state.flipped.clear();
-        for &i in order.iter().filter(|&&i| dirty[i]) {
+        let visit: Vec<usize> = order.iter().copied().filter(|&i| dirty[i]).collect();
+        for &i in &visit {
             let delta = state.flip_delta(i);
             if (state.exists[i] && delta <= state.tolerance)
                 || (!state.exists[i] && delta < -state.tolerance)
             {
                 state.flip(i);
-                state.commit();
+                state.commit(&mut memo);
                 flips += 1;
             }
         }
         if moves == Moves::All {
-            for &i in order.iter().filter(|&&i| dirty[i]) {
-                if !state.exists[i] {
-                    flips += state.add_and_prune(i);
-                    state.commit();
-                }
-            }
-            for &i in order.iter().filter(|&&i| dirty[i]) {
-                if state.exists[i] {
-                    flips += state.replace(i);
-                    state.commit();
-                }
-            }
+            flips += run_trials(&mut state, &mut memo, Trial::AddAndPrune, &visit);
+            flips += run_trials(&mut state, &mut memo, Trial::Replace, &visit);
         }
         if flips == before {
             break;
@@ -75,13 +71,122 @@ pub fn polish(
         flipped.dedup();
         for &c in &flipped {
             dirty[c] = true;
-            for k in state.neighbours(c) {
-                dirty[k] = true;
+            for &k in state.neighbours(c) {
+                dirty[k as usize] = true;
             }
         }
     }
     exists.copy_from_slice(&state.exists);
     flips
+}
+
+/// Trials of one kind tried per thread in a parallel batch (dimensionless). Most trials
+/// fail and leave the scene as it was, so a batch's trials all see the same scene; a
+/// batch is cut after its first kept move.
+const TRIALS_PER_THREAD: [usize; 2] = [0, 4];
+
+/// Runs trial `kind` from each candidate of `visit` in turn, if it applies to the current
+/// scene (add-and-prune from absent candidates, replace chains from existing ones) and is
+/// not known to fail; keeps each that pays. Returns the flips kept.
+///
+/// The same moves, in the same order, as running them one after another: the trials of a
+/// batch run in parallel, each on a copy of the scene, and after the first that pays (in
+/// `visit` order) the main state runs that one (the same scene, so the same move) and
+/// the next batch starts behind it; the later trials of the batch, which saw the scene
+/// before it, run again. So the result does not depend on the thread count.
+fn run_trials(
+    state: &mut PolishState,
+    memo: &mut TrialMemo,
+    kind: Trial,
+    visit: &[usize],
+) -> usize {
+    let threads = rayon::current_num_threads();
+    let batch_len = threads * TRIALS_PER_THREAD[kind as usize];
+    let mut flips = 0;
+    let mut next = 0;
+    while next < visit.len() {
+        let mut batch = Vec::new();
+        while next < visit.len() && batch.len() < batch_len.max(1) {
+            let i = visit[next];
+            next += 1;
+            if kind.applies(state.exists[i]) && !memo.known_failure(kind, i) {
+                batch.push((next, i));
+            }
+        }
+        let kept = if batch_len < 2 || batch.len() < 2 {
+            // Serially on the main state: no copies.
+            batch.iter().find_map(|&(after, i)| {
+                state.record_reads(i);
+                let kept = state.trial(kind, i);
+                let read = state.take_reads();
+                if kept == 0 {
+                    memo.failed(kind, i, read);
+                    None
+                } else {
+                    Some((after, i, kept))
+                }
+            })
+        } else {
+            let outcomes = speculate(state, kind, &batch, threads);
+            batch
+                .iter()
+                .zip(outcomes)
+                .find_map(|(&(after, i), outcome)| match outcome {
+                    Outcome::Failed(read) => {
+                        memo.failed(kind, i, read);
+                        None
+                    }
+                    Outcome::Kept => Some((after, i, state.trial(kind, i))),
+                })
+        };
+        if let Some((after, i, kept)) = kept {
+            debug_assert!(kept > 0, "a trial kept on a copy is kept on the same scene");
+            memo.kept(kind, i);
+            state.commit(memo);
+            flips += kept;
+            next = after;
+        }
+    }
+    flips
+}
+
+/// What a trial did on a copy of the scene.
+enum Outcome {
+    /// It failed, having read the rows of these candidates.
+    Failed(Vec<u32>),
+    /// It paid.
+    Kept,
+}
+
+/// The outcomes of `batch`'s trials, each on a copy of `state`'s scene, in parallel over
+/// `threads` slices; a slice stops at its first kept trial (the rest of the batch runs
+/// again anyway), so the outcomes cover a prefix of the batch up to its first kept one.
+fn speculate(
+    state: &PolishState,
+    kind: Trial,
+    batch: &[(usize, usize)],
+    threads: usize,
+) -> Vec<Outcome> {
+    let per = batch.len().div_ceil(threads).max(1);
+    let slices: Vec<Vec<Outcome>> = batch
+        .par_chunks(per)
+        .map(|slice| {
+            let mut copy = state.clone();
+            let mut out = Vec::with_capacity(slice.len());
+            for &(_, i) in slice {
+                copy.record_reads(i);
+                let mark = copy.mark();
+                if copy.trial(kind, i) > 0 {
+                    out.push(Outcome::Kept);
+                    break;
+                }
+                copy.rollback(mark);
+                out.push(Outcome::Failed(copy.take_reads()));
+            }
+            out
+        })
+        .collect();
+    slices.into_iter().flatten().collect()
 }
 
 /// Which moves [`polish`] makes.
@@ -102,6 +207,14 @@ const CHAIN_CHOICES: usize = 3;
 
 /// The moves of [`polish`], each a trial of flips kept only if it pays.
 impl PolishState<'_> {
+    /// Trial `kind` from `i`; returns the number of flips kept (0 if reverted).
+    fn trial(&mut self, kind: Trial, i: usize) -> usize {
+        match kind {
+            Trial::AddAndPrune => self.add_and_prune(i),
+            Trial::Replace => self.replace(i),
+        }
+    }
+
     /// Move 3 of [`polish`]; returns the number of flips kept (0 if reverted).
     fn replace(&mut self, i: usize) -> usize {
         let mut journal = Vec::new();
@@ -177,9 +290,12 @@ impl PolishState<'_> {
             .min_by(|a, b| a.0.total_cmp(&b.0).then(a.1.cmp(&b.1)))
     }
     /// Existing neighbours of `k`.
-    fn existing_overlapping(&mut self, k: usize) -> Vec<usize> {
+    fn existing_overlapping(&self, k: usize) -> Vec<usize> {
         let n = self.neighbours(k);
-        n.into_iter().filter(|&c| self.exists[c]).collect()
+        n.iter()
+            .map(|&c| c as usize)
+            .filter(|&c| self.exists[c])
+            .collect()
     }
 
     /// Removes every existing neighbour of `k` whose removal costs nothing, in index
@@ -239,8 +355,11 @@ impl PolishState<'_> {
 mod tests {
     use super::*;
     use crate::chamfer::test_problems::clusters;
-    use crate::chamfer::{ChamferOptions, Evaluator};
+    use crate::chamfer::{ChamferOptions, Evaluator, SampleSets};
     use crate::progress::Silent;
+    use nalgebra::Point3;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     #[test]
     fn polish_matches_exhaustive_single_flip_optimality() {
@@ -263,5 +382,124 @@ mod tests {
                 "flip {i} improves"
             );
         }
+    }
+
+    /// Noisy points on two lines; candidates: unit segments every quarter unit along and
+    /// beside them, so tiles overlap fourfold and rows of tiles can shift.
+    fn tiles(seed: u64) -> (Vec<Point3<f64>>, SampleSets) {
+        let mut rng = ChaCha8Rng::seed_from_u64(seed);
+        let mut cloud = Vec::new();
+        for line in 0..2 {
+            let (start, end) = (rng.random_range(0.0..0.6), rng.random_range(3.4..4.0));
+            for k in 0..120 {
+                let x = start + (end - start) * k as f64 / 120.0;
+                let y = line as f64 + rng.random_range(-0.02..0.02);
+                cloud.push(Point3::new(x, y, 0.0));
+            }
+        }
+        let (mut samples, mut owner) = (Vec::new(), Vec::new());
+        let mut n = 0;
+        for y in [0.0, 0.15, 1.0, 1.1] {
+            for k in 0..14 {
+                let x0 = 0.25 * k as f64 + rng.random_range(-0.01..0.01);
+                for s in 0..11 {
+                    samples.push(Point3::new(x0 + 0.1 * s as f64, y, 0.0));
+                    owner.push(n);
+                }
+                n += 1;
+            }
+        }
+        (cloud, SampleSets::new(&samples, &owner, n).unwrap())
+    }
+
+    /// The polish as it ran before the trial memo and the parallel trials: every move
+    /// tried on the one state, in order.
+    fn polish_one_by_one(
+        coeffs: &Coefficients,
+        probability: &[f64],
+        exists: &mut [bool],
+        max_sweeps: usize,
+    ) -> usize {
+        let n = coeffs.candidates();
+        let tables = PolishTables::new(coeffs);
+        let mut state = PolishState::new(coeffs, &tables, exists);
+        let mut ignored = TrialMemo::new(n);
+        let mut order: Vec<usize> = (0..n).collect();
+        order.sort_by(|&a, &b| probability[a].total_cmp(&probability[b]).then(a.cmp(&b)));
+        let mut dirty = vec![true; n];
+        let mut flips = 0;
+        for _ in 0..max_sweeps {
+            let before = flips;
+            state.flipped.clear();
+            let visit: Vec<usize> = order.iter().copied().filter(|&i| dirty[i]).collect();
+            for &i in &visit {
+                let delta = state.flip_delta(i);
+                if (state.exists[i] && delta <= state.tolerance)
+                    || (!state.exists[i] && delta < -state.tolerance)
+                {
+                    state.flip(i);
+                    flips += 1;
+                }
+            }
+            for kind in [Trial::AddAndPrune, Trial::Replace] {
+                for &i in &visit {
+                    if kind.applies(state.exists[i]) {
+                        flips += state.trial(kind, i);
+                    }
+                }
+            }
+            state.commit(&mut ignored);
+            if flips == before {
+                break;
+            }
+            dirty.fill(false);
+            for &c in &state.flipped.clone() {
+                dirty[c] = true;
+                for &k in state.neighbours(c) {
+                    dirty[k as usize] = true;
+                }
+            }
+        }
+        exists.copy_from_slice(&state.exists);
+        flips
+    }
+
+    /// Skipping the trials the memo knows to fail, and trying the others in parallel
+    /// batches, changes nothing: the same scene and flip count as trying every move one by
+    /// one, on 1 and on 3 threads, from random and from full starting scenes.
+    #[test]
+    fn memo_and_parallel_trials_give_the_one_by_one_result() {
+        let mut moved = 0;
+        for seed in 0..12 {
+            let (cloud, sets) = tiles(seed);
+            let opts = ChamferOptions {
+                cap: 0.05,
+                beta: Some(12),
+                ..Default::default()
+            };
+            let c = Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap();
+            let n = c.candidates();
+            let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
+            let probability: Vec<f64> = (0..n).map(|_| rng.random_range(0.0..1.0)).collect();
+            let start: Vec<bool> = if seed % 2 == 0 {
+                probability.iter().map(|&p| p > 0.6).collect()
+            } else {
+                vec![true; n]
+            };
+            let mut expected = start.clone();
+            let expected_flips = polish_one_by_one(&c, &probability, &mut expected, 20);
+            for threads in [1, 3] {
+                let pool = rayon::ThreadPoolBuilder::new()
+                    .num_threads(threads)
+                    .build()
+                    .unwrap();
+                let mut got = start.clone();
+                let flips = pool.install(|| polish(&c, &probability, &mut got, 20, Moves::All));
+                assert_eq!(got, expected, "seed {seed}, {threads} threads");
+                assert_eq!(flips, expected_flips, "seed {seed}, {threads} threads");
+            }
+            moved += expected_flips;
+        }
+        assert!(moved > 0, "the scenes exercise the moves");
     }
 }

@@ -3,8 +3,11 @@
 //! flip is a sum over the flipped candidate's rows and a rejected trial move is rolled
 //! back without row scans.
 
+use std::sync::OnceLock;
+
 use rayon::prelude::*;
 
+use super::polish_memo::TrialMemo;
 use crate::chamfer::Coefficients;
 
 /// Rows sampled per candidate when listing its neighbours.
@@ -46,17 +49,44 @@ pub(super) struct Mark {
     pub(super) flipped: usize,
 }
 
-/// The binary scene and each point's current explanation, for [`super::polish()`].
-pub(super) struct PolishState<'c> {
-    pub(super) coeffs: &'c Coefficients,
+/// What the polish reads and never changes, shared by the main state and the copies that
+/// try moves in parallel: each candidate's rows ([`transpose`]) and its neighbours, each
+/// list built the first time it is asked for.
+pub(super) struct PolishTables {
+    /// Per candidate, its rows with its nearest distance there.
+    rows: Vec<Vec<(u32, f64)>>,
+    /// Per candidate, its neighbours once listed ([`PolishState::neighbours`]).
+    neighbours: Vec<OnceLock<Box<[u32]>>>,
+}
+
+impl PolishTables {
+    pub(super) fn new(coeffs: &Coefficients) -> Self {
+        PolishTables {
+            rows: transpose(coeffs),
+            neighbours: (0..coeffs.candidates()).map(|_| OnceLock::new()).collect(),
+        }
+    }
+
+    /// Each candidate's rows (for the memo's tests).
+    #[cfg(test)]
+    pub(super) fn rows_for_tests(&self) -> &[Vec<(u32, f64)>] {
+        &self.rows
+    }
+}
+
+/// The binary scene and each point's current explanation, for [`super::polish()`]. A
+/// clone is an independent copy of the scene over the same tables.
+#[derive(Clone)]
+pub(super) struct PolishState<'a> {
+    pub(super) coeffs: &'a Coefficients,
     /// Per candidate, its rows with its nearest distance there ([`transpose`]).
-    pub(super) rows: Vec<Vec<(u32, f64)>>,
+    pub(super) rows: &'a [Vec<(u32, f64)>],
+    /// Per candidate, its neighbours once listed.
+    neighbour_lists: &'a [OnceLock<Box<[u32]>>],
     /// The current binary scene.
     pub(super) exists: Vec<bool>,
     /// Per point (row), its current explanation.
     pub(super) point: Vec<Explanation>,
-    /// Per candidate, its neighbours once listed ([`PolishState::neighbours`]).
-    neighbour_cache: Vec<Option<Vec<u32>>>,
     /// Scratch of [`PolishState::best_replacement`]: per candidate, what it gains on the
     /// freed points (all zero between calls).
     pub(super) gain: Vec<f64>,
@@ -66,10 +96,13 @@ pub(super) struct PolishState<'c> {
     undo: Vec<Undo>,
     /// Loss changes within ± this count as zero (see [`RELATIVE_TOLERANCE`]).
     pub(super) tolerance: f64,
+    /// Candidates whose rows were read since [`PolishState::record_reads`] (`None`: not
+    /// recording); what a trial move depends on ([`TrialMemo`]).
+    reads: Option<Vec<u32>>,
 }
 
-impl<'c> PolishState<'c> {
-    pub(super) fn new(coeffs: &'c Coefficients, exists: &[bool]) -> Self {
+impl<'a> PolishState<'a> {
+    pub(super) fn new(coeffs: &'a Coefficients, tables: &'a PolishTables, exists: &[bool]) -> Self {
         let n = coeffs.candidates();
         let point = (0..coeffs.points())
             .into_par_iter()
@@ -77,14 +110,15 @@ impl<'c> PolishState<'c> {
             .collect();
         let mut s = PolishState {
             coeffs,
-            rows: transpose(coeffs),
+            rows: &tables.rows,
+            neighbour_lists: &tables.neighbours,
             exists: exists.to_vec(),
             point,
-            neighbour_cache: vec![None; n],
             gain: vec![0.0; n],
             flipped: Vec::new(),
             undo: Vec::new(),
             tolerance: 0.0,
+            reads: None,
         };
         let o = &coeffs.options;
         let cost: f64 = s.point.iter().map(|e| e.cost).sum();
@@ -93,8 +127,26 @@ impl<'c> PolishState<'c> {
         s
     }
 
+    /// Starts recording which candidates' rows are read, beginning with `i`'s.
+    pub(super) fn record_reads(&mut self, i: usize) {
+        self.reads = Some(vec![i as u32]);
+    }
+
+    /// Stops recording; the candidates whose rows were read since [`Self::record_reads`].
+    pub(super) fn take_reads(&mut self) -> Vec<u32> {
+        self.reads.take().unwrap_or_default()
+    }
+
+    #[inline]
+    fn note_read(&mut self, c: usize) {
+        if let Some(r) = &mut self.reads {
+            r.push(c as u32);
+        }
+    }
+
     /// Change of the binary loss if candidate `i` flipped.
-    pub(super) fn flip_delta(&self, i: usize) -> f64 {
+    pub(super) fn flip_delta(&mut self, i: usize) -> f64 {
+        self.note_read(i);
         let (wp, wq) = (
             self.coeffs.options.primitive_weight,
             self.coeffs.options.point_weight,
@@ -124,6 +176,7 @@ impl<'c> PolishState<'c> {
 
     /// Flips candidate `i` and updates the points it touches (logged for rollback).
     pub(super) fn flip(&mut self, i: usize) {
+        self.note_read(i);
         self.exists[i] = !self.exists[i];
         self.flipped.push(i);
         let c = i as u32;
@@ -169,36 +222,32 @@ impl<'c> PolishState<'c> {
         self.flipped.truncate(mark.flipped);
     }
 
-    /// Forgets the undo log: the changes so far are kept.
-    pub(super) fn commit(&mut self) {
+    /// Forgets the undo log: the changes so far are kept (and stamped in `memo`).
+    pub(super) fn commit(&mut self, memo: &mut TrialMemo) {
+        let kept = self.undo.iter().filter_map(|u| match *u {
+            Undo::Flip(c) => Some(c as usize),
+            Undo::Point(..) => None,
+        });
+        memo.commit(self.coeffs, self.rows, kept);
         self.undo.clear();
     }
 
     /// Candidates with entries in (a sample of at most [`NEIGHBOUR_ROWS`] of) the rows of
-    /// `i`, sorted, without `i`; cached.
-    pub(super) fn neighbours(&mut self, i: usize) -> Vec<usize> {
-        if self.neighbour_cache[i].is_none() {
-            let rows = &self.rows[i];
+    /// `i`, sorted, without `i`; listed once and shared by every copy of the state.
+    pub(super) fn neighbours(&self, i: usize) -> &'a [u32] {
+        let (coeffs, rows) = (self.coeffs, &self.rows[i]);
+        self.neighbour_lists[i].get_or_init(|| {
             let stride = rows.len().div_ceil(NEIGHBOUR_ROWS).max(1);
             let mut n: Vec<u32> = rows
                 .iter()
                 .step_by(stride)
-                .flat_map(|&(j, _)| {
-                    self.coeffs.cand[self.coeffs.row(j as usize)]
-                        .iter()
-                        .copied()
-                })
+                .flat_map(|&(j, _)| coeffs.cand[coeffs.row(j as usize)].iter().copied())
                 .filter(|&c| c as usize != i)
                 .collect();
             n.sort_unstable();
             n.dedup();
-            self.neighbour_cache[i] = Some(n);
-        }
-        self.neighbour_cache[i]
-            .iter()
-            .flatten()
-            .map(|&c| c as usize)
-            .collect()
+            n.into_boxed_slice()
+        })
     }
 }
 
@@ -333,7 +382,9 @@ mod tests {
             };
             let c = Coefficients::build(&cloud, &sets, &o, &Silent).unwrap();
             let mut ev = Evaluator::new(&c);
-            let mut st = PolishState::new(&c, &[false; 12]);
+            let tables = PolishTables::new(&c);
+            let mut memo = TrialMemo::new(12);
+            let mut st = PolishState::new(&c, &tables, &[false; 12]);
             let mut rng = ChaCha8Rng::seed_from_u64(4);
             for _ in 0..300 {
                 let i = rng.random_range(0..12usize);
@@ -357,7 +408,7 @@ mod tests {
                 }
                 // A trial of a few flips rolled back leaves the state exactly as it was.
                 let (exists, point) = (st.exists.clone(), st.point.clone());
-                st.commit();
+                st.commit(&mut memo);
                 let mark = st.mark();
                 for _ in 0..rng.random_range(1..5) {
                     st.flip(rng.random_range(0..12usize));
