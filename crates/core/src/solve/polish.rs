@@ -36,6 +36,32 @@ pub fn polish(
     max_sweeps: usize,
     moves: Moves,
 ) -> usize {
+    sweeps(
+        coeffs,
+        probability,
+        exists,
+        max_sweeps,
+        |state, memo, visit| {
+            if moves == Moves::All {
+                run_trials(state, memo, Trial::AddAndPrune, visit)
+                    + run_trials(state, memo, Trial::Replace, visit)
+            } else {
+                0
+            }
+        },
+    )
+}
+
+/// The sweeps of [`polish`]: single flips of the candidates to visit, then `trials` (the
+/// moves 2 and 3 over the same candidates; returns its flips), until a sweep flips
+/// nothing. Returns the number of flips.
+fn sweeps(
+    coeffs: &Coefficients,
+    probability: &[f64],
+    exists: &mut [bool],
+    max_sweeps: usize,
+    mut trials: impl FnMut(&mut PolishState, &mut TrialMemo, &[usize]) -> usize,
+) -> usize {
     let n = coeffs.candidates();
     let tables = PolishTables::new(coeffs);
     let mut state = PolishState::new(coeffs, &tables, exists);
@@ -58,10 +84,7 @@ pub fn polish(
                 flips += 1;
             }
         }
-        if moves == Moves::All {
-            flips += run_trials(&mut state, &mut memo, Trial::AddAndPrune, &visit);
-            flips += run_trials(&mut state, &mut memo, Trial::Replace, &visit);
-        }
+        flips += trials(&mut state, &mut memo, &visit);
         if flips == before {
             break;
         }
@@ -412,56 +435,32 @@ mod tests {
         (cloud, SampleSets::new(&samples, &owner, n).unwrap())
     }
 
-    /// The polish as it ran before the trial memo and the parallel trials: every move
-    /// tried on the one state, in order.
+    /// The polish with moves 2 and 3 as they ran before the trial memo and the parallel
+    /// trials: every trial run on the one state, in order, and kept when it pays.
     fn polish_one_by_one(
         coeffs: &Coefficients,
         probability: &[f64],
         exists: &mut [bool],
         max_sweeps: usize,
     ) -> usize {
-        let n = coeffs.candidates();
-        let tables = PolishTables::new(coeffs);
-        let mut state = PolishState::new(coeffs, &tables, exists);
-        let mut ignored = TrialMemo::new(n);
-        let mut order: Vec<usize> = (0..n).collect();
-        order.sort_by(|&a, &b| probability[a].total_cmp(&probability[b]).then(a.cmp(&b)));
-        let mut dirty = vec![true; n];
-        let mut flips = 0;
-        for _ in 0..max_sweeps {
-            let before = flips;
-            state.flipped.clear();
-            let visit: Vec<usize> = order.iter().copied().filter(|&i| dirty[i]).collect();
-            for &i in &visit {
-                let delta = state.flip_delta(i);
-                if (state.exists[i] && delta <= state.tolerance)
-                    || (!state.exists[i] && delta < -state.tolerance)
-                {
-                    state.flip(i);
-                    flips += 1;
-                }
-            }
-            for kind in [Trial::AddAndPrune, Trial::Replace] {
-                for &i in &visit {
-                    if kind.applies(state.exists[i]) {
-                        flips += state.trial(kind, i);
+        sweeps(
+            coeffs,
+            probability,
+            exists,
+            max_sweeps,
+            |state, memo, visit| {
+                let mut flips = 0;
+                for kind in [Trial::AddAndPrune, Trial::Replace] {
+                    for &i in visit {
+                        if kind.applies(state.exists[i]) {
+                            flips += state.trial(kind, i);
+                            state.commit(memo);
+                        }
                     }
                 }
-            }
-            state.commit(&mut ignored);
-            if flips == before {
-                break;
-            }
-            dirty.fill(false);
-            for &c in &state.flipped.clone() {
-                dirty[c] = true;
-                for &k in state.neighbours(c) {
-                    dirty[k as usize] = true;
-                }
-            }
-        }
-        exists.copy_from_slice(&state.exists);
-        flips
+                flips
+            },
+        )
     }
 
     /// Skipping the trials the memo knows to fail, and trying the others in parallel
