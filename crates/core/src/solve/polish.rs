@@ -36,11 +36,16 @@ pub fn polish(
     max_sweeps: usize,
     moves: Moves,
 ) -> usize {
+    let memo = match moves {
+        Moves::All => TrialMemo::new(coeffs.candidates()),
+        Moves::SingleFlips => TrialMemo::unused(),
+    };
     sweeps(
         coeffs,
         probability,
         exists,
         max_sweeps,
+        memo,
         |state, memo, visit| {
             if moves == Moves::All {
                 run_trials(state, memo, Trial::AddAndPrune, visit)
@@ -53,19 +58,19 @@ pub fn polish(
 }
 
 /// The sweeps of [`polish`]: single flips of the candidates to visit, then `trials` (the
-/// moves 2 and 3 over the same candidates; returns its flips), until a sweep flips
-/// nothing. Returns the number of flips.
+/// moves 2 and 3 over the same candidates, with `memo`; returns its flips), until a sweep
+/// flips nothing. Returns the number of flips.
 fn sweeps(
     coeffs: &Coefficients,
     probability: &[f64],
     exists: &mut [bool],
     max_sweeps: usize,
+    mut memo: TrialMemo,
     mut trials: impl FnMut(&mut PolishState, &mut TrialMemo, &[usize]) -> usize,
 ) -> usize {
     let n = coeffs.candidates();
     let tables = PolishTables::new(coeffs);
     let mut state = PolishState::new(coeffs, &tables, exists);
-    let mut memo = TrialMemo::new(n);
     let mut order: Vec<usize> = (0..n).collect();
     order.sort_by(|&a, &b| probability[a].total_cmp(&probability[b]).then(a.cmp(&b)));
     let mut dirty = vec![true; n];
@@ -103,10 +108,20 @@ fn sweeps(
     flips
 }
 
-/// Trials of one kind tried per thread in a parallel batch (dimensionless). Most trials
-/// fail and leave the scene as it was, so a batch's trials all see the same scene; a
-/// batch is cut after its first kept move.
-const TRIALS_PER_THREAD: [usize; 2] = [0, 4];
+/// Replace chains tried per thread in a parallel batch (dimensionless). Most fail and
+/// leave the scene as it was, so a batch's trials all see the same scene; a batch is cut
+/// after its first kept move. Add-and-prune trials (~10 µs) cost less than a copy of the
+/// scene, so they run one by one on the main state.
+const REPLACE_TRIALS_PER_THREAD: usize = 4;
+
+/// Trials of `kind` per batch on `threads` threads (1: one by one on the main state).
+fn batch_len(kind: Trial, threads: usize) -> usize {
+    match kind {
+        _ if threads < 2 => 1,
+        Trial::AddAndPrune => 1,
+        Trial::Replace => threads * REPLACE_TRIALS_PER_THREAD,
+    }
+}
 
 /// Runs trial `kind` from each candidate of `visit` in turn, if it applies to the current
 /// scene (add-and-prune from absent candidates, replace chains from existing ones) and is
@@ -124,19 +139,19 @@ fn run_trials(
     visit: &[usize],
 ) -> usize {
     let threads = rayon::current_num_threads();
-    let batch_len = threads * TRIALS_PER_THREAD[kind as usize];
+    let batch_len = batch_len(kind, threads);
     let mut flips = 0;
     let mut next = 0;
     while next < visit.len() {
         let mut batch = Vec::new();
-        while next < visit.len() && batch.len() < batch_len.max(1) {
+        while next < visit.len() && batch.len() < batch_len {
             let i = visit[next];
             next += 1;
             if kind.applies(state.exists[i]) && !memo.known_failure(kind, i) {
                 batch.push((next, i));
             }
         }
-        let kept = if batch_len < 2 || batch.len() < 2 {
+        let kept = if batch.len() < 2 {
             // Serially on the main state: no copies.
             batch.iter().find_map(|&(after, i)| {
                 state.record_reads(i);
@@ -448,6 +463,7 @@ mod tests {
             probability,
             exists,
             max_sweeps,
+            TrialMemo::new(coeffs.candidates()),
             |state, memo, visit| {
                 let mut flips = 0;
                 for kind in [Trial::AddAndPrune, Trial::Replace] {

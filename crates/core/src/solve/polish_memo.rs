@@ -61,10 +61,17 @@ impl TrialMemo {
         }
     }
 
+    /// A memo for a polish that runs no trials: it stamps nothing (so kept single flips
+    /// cost no row scans) and knows no failure.
+    pub(super) fn unused() -> Self {
+        Self::new(0)
+    }
+
     /// Whether trial `kind` from `i` is known to fail in the current state.
     pub(super) fn known_failure(&self, kind: Trial, i: usize) -> bool {
-        self.failed[kind as usize][i]
-            .as_ref()
+        self.failed[kind as usize]
+            .get(i)
+            .and_then(Option::as_ref)
             .is_some_and(|f| f.read.iter().all(|&c| self.stamped[c as usize] <= f.at))
     }
 
@@ -91,6 +98,9 @@ impl TrialMemo {
         rows: &[Vec<(u32, f64)>],
         flipped: impl Iterator<Item = usize>,
     ) {
+        if self.stamped.is_empty() {
+            return;
+        }
         let mut any = false;
         for c in flipped {
             if !any {
