@@ -18,9 +18,6 @@ use crate::surface::pca_plane;
 /// a region.
 const DEGENERATE_FLATNESS: f64 = 1.0 / 3.0;
 
-/// One point's neighbour ids, PCA plane (normal, flatness, residual) and radius.
-type Row = (Vec<u32>, Option<(Vector3<f64>, f64, f64)>, f64);
-
 /// Normals, curvature and neighbour lists of a set of points.
 #[derive(Debug, Clone)]
 pub struct Neighbourhoods {
@@ -45,39 +42,37 @@ impl Neighbourhoods {
     /// over exactly these points) with `k` neighbours each.
     pub fn new(points: &[Point3<f64>], index: &PointIndex, k: usize) -> Self {
         let k = k.max(1).min(points.len().max(1));
-        let rows: Vec<Row> = points
-            .par_iter()
-            .map(|p| {
-                let hits = index.nearest_n(p, k);
-                let local: Vec<Point3<f64>> =
-                    hits.iter().map(|(i, _)| points[*i as usize]).collect();
-                let radius = hits.last().map_or(0.0, |h| h.1.sqrt());
-                let ids = hits.iter().map(|h| h.0).collect();
-                (ids, pca_plane(&local), radius)
-            })
-            .collect();
+        let n = points.len();
         let mut out = Neighbourhoods {
             k,
-            neighbours: Vec::with_capacity(points.len() * k),
-            normals: Vec::with_capacity(points.len()),
-            flatness: Vec::with_capacity(points.len()),
-            residual: Vec::with_capacity(points.len()),
-            radius: Vec::with_capacity(points.len()),
+            neighbours: vec![0; n * k],
+            normals: vec![Vector3::zeros(); n],
+            flatness: vec![DEGENERATE_FLATNESS; n],
+            residual: vec![0.0; n],
+            radius: vec![0.0; n],
         };
-        for (i, (mut ids, plane, radius)) in rows.into_iter().enumerate() {
-            // Put the point itself first (a duplicate point may tie with it) and pad a
-            // short row with the point itself.
-            if let Some(pos) = ids.iter().position(|&j| j as usize == i) {
-                ids[..=pos].rotate_right(1);
-            }
-            ids.resize(k, i as u32);
-            out.neighbours.extend_from_slice(&ids);
-            let (n, f, r) = plane.unwrap_or((Vector3::zeros(), DEGENERATE_FLATNESS, 0.0));
-            out.normals.push(n);
-            out.flatness.push(f);
-            out.residual.push(r);
-            out.radius.push(radius);
-        }
+        (
+            out.neighbours.par_chunks_mut(k),
+            &mut out.normals,
+            &mut out.flatness,
+            &mut out.residual,
+            &mut out.radius,
+        )
+            .into_par_iter()
+            .enumerate()
+            .for_each_init(
+                Vec::new,
+                |local, (i, (row, normal, flatness, residual, radius))| {
+                    let hits = index.nearest_n(&points[i], k);
+                    local.clear();
+                    local.extend(hits.iter().map(|(j, _)| points[*j as usize]));
+                    *radius = hits.last().map_or(0.0, |h| h.1.sqrt());
+                    if let Some((nrm, f, r)) = pca_plane(local) {
+                        (*normal, *flatness, *residual) = (nrm, f, r);
+                    }
+                    fill_row(row, &hits, i as u32);
+                },
+            );
         out
     }
 
@@ -90,6 +85,19 @@ impl Neighbourhoods {
     pub fn row(&self, i: usize) -> &[u32] {
         &self.neighbours[i * self.k..(i + 1) * self.k]
     }
+}
+
+/// Writes point `me`'s neighbour row from its `hits` (sorted by distance): the point
+/// itself first (a duplicate point may tie with it), a short row padded with itself.
+fn fill_row(row: &mut [u32], hits: &[(u32, f64)], me: u32) {
+    for (slot, hit) in row.iter_mut().zip(hits) {
+        *slot = hit.0;
+    }
+    let filled = hits.len().min(row.len());
+    if let Some(pos) = row[..filled].iter().position(|&j| j == me) {
+        row[..=pos].rotate_right(1);
+    }
+    row[filled..].fill(me);
 }
 
 /// The median of `values` (`None` when empty); `values` is reordered.
@@ -105,6 +113,18 @@ pub(super) fn median(values: &mut [f64]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    #[test]
+    fn a_row_starts_with_its_point_and_is_padded_with_it() {
+        // Point 7 ties with its duplicate 3, which the index listed first.
+        let hits = [(3, 0.0), (7, 0.0), (9, 0.5)];
+        let mut row = [u32::MAX; 5];
+        fill_row(&mut row, &hits, 7);
+        assert_eq!(row, [7, 3, 9, 7, 7]);
+        let mut row = [u32::MAX; 2];
+        fill_row(&mut row, &hits[1..], 7);
+        assert_eq!(row, [7, 9]);
+    }
 
     #[test]
     fn normals_of_a_plane_and_neighbour_rows() {
