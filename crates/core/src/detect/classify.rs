@@ -90,8 +90,14 @@ pub fn classify(
     let accept = |rms: f64, radius: f64| {
         rms <= limit && rms <= CURVED_GAIN * plane.rms && radius <= MAX_RADIUS_PER_EXTENT * extent
     };
+    // The two curved fits are independent: on two threads the sphere's runs beside the
+    // cylinder's (the same models on any thread count).
+    let (cylinder, sphere) = rayon::join(
+        || fit_cylinder(&pts, &ns),
+        || spheres.then(|| fit_sphere(&pts)).flatten(),
+    );
     let mut best: Option<Classified> = None;
-    if let Some(c) = fit_cylinder(&pts, &ns).filter(|c| accept(c.rms, c.radius)) {
+    if let Some(c) = cylinder.filter(|c| accept(c.rms, c.radius)) {
         best = Some(Classified {
             model: Some(SurfaceModel::Cylinder {
                 point: c.point,
@@ -102,8 +108,7 @@ pub fn classify(
             rms: c.rms,
         });
     }
-    if spheres
-        && let Some(s) = fit_sphere(&pts).filter(|s| accept(s.rms, s.radius))
+    if let Some(s) = sphere.filter(|s| accept(s.rms, s.radius))
         && best.is_none_or(|b| s.rms < b.rms)
     {
         best = Some(Classified {

@@ -152,14 +152,17 @@ impl Splitter<'_> {
                 .filter(|&i| (self.samples[i] - point).dot(normal).abs() <= limit)
                 .collect()
         };
+        // The candidates' inliers are counted in parallel; the first with most wins.
+        let counted: Vec<Option<Vec<usize>>> = (0..PLANE_CANDIDATES)
+            .into_par_iter()
+            .map(|c| {
+                let seed = by_flatness[c * half / PLANE_CANDIDATES];
+                let normal = self.nb.normals[seed];
+                (normal != nalgebra::Vector3::zeros()).then(|| within(&self.samples[seed], &normal))
+            })
+            .collect();
         let mut best: Option<Vec<usize>> = None;
-        for c in 0..PLANE_CANDIDATES {
-            let seed = by_flatness[c * half / PLANE_CANDIDATES];
-            let normal = self.nb.normals[seed];
-            if normal == nalgebra::Vector3::zeros() {
-                continue;
-            }
-            let inliers = within(&self.samples[seed], &normal);
+        for inliers in counted.into_iter().flatten() {
             if best.as_ref().is_none_or(|b| inliers.len() > b.len()) {
                 best = Some(inliers);
             }
