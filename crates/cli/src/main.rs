@@ -69,8 +69,7 @@ fn remove_temporary_files_on_signals() {
 /// Starts the global rayon pool with `threads` workers (default: rayon's, all cores or
 /// `RAYON_NUM_THREADS`), the main thread being one of them: parallel work it starts is
 /// pushed on its own queue rather than injected from outside, and `-j N` runs N
-/// threads, not N workers beside an idle main thread. On the 3k-point plane scan this
-/// took 4 ms (15%) off a 1-thread and a 2-thread fit (docs/performance.md).
+/// threads, not N workers beside an idle main thread (measured in docs/performance.md).
 fn start_thread_pool(threads: Option<usize>) -> Result<(), String> {
     let n = match threads {
         Some(n) => primfit_core::budget::check_threads("threads", n)
