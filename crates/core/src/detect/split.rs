@@ -19,7 +19,7 @@
 //! 4. A region whose dominant plane has no piece of the smallest segment's size is
 //!    **clutter**, as is what remains at the depth limit.
 
-use nalgebra::Point3;
+use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
 use super::classify::classify;
@@ -54,6 +54,9 @@ pub struct Splitter<'a> {
     /// Neighbours that connect samples (the growing neighbourhood).
     pub neighbours: usize,
 }
+
+/// A candidate dominant plane: its inlier count, a point on it and its unit normal.
+type CountedPlane = (usize, Point3<f64>, Vector3<f64>);
 
 /// Marks a sample outside the ids of [`Splitter::components`].
 const NOT_INSIDE: usize = usize::MAX;
@@ -146,28 +149,39 @@ impl Splitter<'_> {
                 .then(a.cmp(&b))
         });
         let half = by_flatness.len().div_ceil(2);
-        let within = |point: &Point3<f64>, normal: &nalgebra::Vector3<f64>| -> Vec<usize> {
+        let is_inlier = |i: usize, point: &Point3<f64>, normal: &Vector3<f64>| {
+            (self.samples[i] - point).dot(normal).abs() <= limit
+        };
+        let within = |point: &Point3<f64>, normal: &Vector3<f64>| -> Vec<usize> {
             ids.iter()
                 .copied()
-                .filter(|&i| (self.samples[i] - point).dot(normal).abs() <= limit)
+                .filter(|&i| is_inlier(i, point, normal))
                 .collect()
         };
-        // The candidates' inliers are counted in parallel; the first with most wins.
-        let counted: Vec<Option<Vec<usize>>> = (0..PLANE_CANDIDATES)
+        // The candidates' inliers are counted in parallel; the first with most wins, and
+        // only its inliers are listed.
+        let counted: Vec<Option<CountedPlane>> = (0..PLANE_CANDIDATES)
             .into_par_iter()
             .map(|c| {
                 let seed = by_flatness[c * half / PLANE_CANDIDATES];
-                let normal = self.nb.normals[seed];
-                (normal != nalgebra::Vector3::zeros()).then(|| within(&self.samples[seed], &normal))
+                let (point, normal) = (self.samples[seed], self.nb.normals[seed]);
+                (normal != Vector3::zeros()).then(|| {
+                    let count = ids
+                        .iter()
+                        .filter(|&&i| is_inlier(i, &point, &normal))
+                        .count();
+                    (count, point, normal)
+                })
             })
             .collect();
-        let mut best: Option<Vec<usize>> = None;
-        for inliers in counted.into_iter().flatten() {
-            if best.as_ref().is_none_or(|b| inliers.len() > b.len()) {
-                best = Some(inliers);
+        let mut best: Option<CountedPlane> = None;
+        for candidate in counted.into_iter().flatten() {
+            if best.is_none_or(|b| candidate.0 > b.0) {
+                best = Some(candidate);
             }
         }
-        let mut inliers = best?;
+        let (_, point, normal) = best?;
+        let mut inliers = within(&point, &normal);
         for _ in 0..PLANE_REFITS {
             let Some(fit) = Moments::of(self.samples, &inliers).plane() else {
                 break;
