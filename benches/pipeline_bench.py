@@ -3,9 +3,9 @@
 
     python benches/pipeline_bench.py --primfit target/release/primfit [--scenes a,b,…] [--out DIR]
 
-Every fit is its own `primfit` process (a fit under 2 s runs five times and the run of
-median wall time is reported). Its wall time, CPU time (user + system) and peak
-RSS come from the operating system (``os.wait4``: ``ru_maxrss``), its per-stage times from
+Every fit is its own `primfit` process (a fit under 2 s runs seven times and the run of
+median wall time is reported; the default's all-cores and one-thread runs alternate). Its
+wall time, CPU time (user + system) and peak RSS come from the operating system (``os.wait4``: ``ru_maxrss``), its per-stage times from
 ``primfit fit --timings`` (read, index, the detection's steps, existence, measures,
 output). Each scene runs:
 
@@ -80,18 +80,32 @@ def machine():
 # A fit shorter than this (seconds) is run REPEATS times and its median run reported:
 # a single run of a few hundred milliseconds moves by tens of per cent with the machine.
 SHORT_RUN = 2.0
-REPEATS = 5
+REPEATS = 7
 
 
 def run_fit(primfit, scan, flags, threads, out_dir, tag):
     """`primfit fit` as a child (REPEATS times when short): the run of median wall time."""
-    runs = [run_fit_once(primfit, scan, flags, threads, out_dir, tag)]
-    if runs[0]["wall"] < SHORT_RUN:
-        runs += [run_fit_once(primfit, scan, flags, threads, out_dir, tag) for _ in range(REPEATS - 1)]
-    runs.sort(key=lambda r: r["wall"])
-    median = runs[len(runs) // 2]
-    median["runs"] = len(runs)
-    return median
+    return run_interleaved(primfit, scan, flags, [threads], out_dir, [tag])[0]
+
+
+def run_interleaved(primfit, scan, flags, thread_counts, out_dir, tags):
+    """`primfit fit` once per thread count, in rounds (REPEATS rounds when the first is
+    short): per thread count, the run of median wall time. The thread counts alternate
+    within each round, so that a slow spell of the machine cannot fall on one of them only
+    and move the speed-up between them."""
+    def one_round():
+        return [run_fit_once(primfit, scan, flags, t, out_dir, tag) for t, tag in zip(thread_counts, tags)]
+
+    rounds = [one_round()]
+    if max(r["wall"] for r in rounds[0]) < SHORT_RUN:
+        rounds += [one_round() for _ in range(REPEATS - 1)]
+    medians = []
+    for k in range(len(thread_counts)):
+        runs = sorted((r[k] for r in rounds), key=lambda r: r["wall"])
+        median = runs[len(runs) // 2]
+        median["runs"] = len(runs)
+        medians.append(median)
+    return medians
 
 
 def run_fit_once(primfit, scan, flags, threads, out_dir, tag):
@@ -130,8 +144,8 @@ def bench_scene(primfit, name, out_dir, threads):
     scan = scene_file(primfit, name, out_dir)
     _, lattice = SCENES[name]
     row = {"scene": name}
-    row["default"] = run_fit(primfit, scan, [], threads, out_dir, f"{name}.default")
-    row["default_1"] = run_fit(primfit, scan, [], 1, out_dir, f"{name}.default1")
+    row["default"], row["default_1"] = run_interleaved(
+        primfit, scan, [], [threads, 1], out_dir, [f"{name}.default", f"{name}.default1"])
     row["lattice"] = run_fit(primfit, scan, lattice + ["--frame", "axis", "--no-refine"], threads, out_dir,
                              f"{name}.lattice")
     row["points"] = row["default"]["metrics"]["points"]
