@@ -6,6 +6,7 @@
 use nalgebra::{Point2, Point3};
 use rayon::prelude::*;
 
+use super::tube_lattice::TubeLattice;
 use crate::atlas::{PlaneShape, plane_frame};
 use crate::detect::{Detection, Segment, SurfaceModel};
 use crate::spatial::{PointIndex, strided_median};
@@ -161,6 +162,8 @@ pub struct CandidateSamples {
     /// Whether the samples cover only part of the surface (a tube seen from one side):
     /// the candidate is then judged by them in the point term too.
     pub partial: bool,
+    /// The lattice of a partial tube's samples, for its nearest-sample queries.
+    pub tube: Option<TubeLattice>,
 }
 
 /// The samples by which a candidate is judged, about `spacing` apart: all of a plane's
@@ -186,11 +189,12 @@ pub fn judged_samples(
     } else {
         spacing
     };
-    let (points, partial) = supported_samples(primitive, segment, points, own);
+    let (points, partial, tube) = supported_samples(primitive, segment, points, own);
     CandidateSamples {
         points,
         weight: (own / spacing).powi(2),
         partial,
+        tube,
     }
 }
 
@@ -204,40 +208,55 @@ pub fn planned_samples(primitive: &Primitive, spacing: f64, max_samples: f64) ->
     }
 }
 
-/// [`judged_samples`] at `spacing` without coarsening, and whether they are a part of
-/// the surface's.
+/// [`judged_samples`] at `spacing` without coarsening, whether they are a part of the
+/// surface's, and for such a tube the lattice of its kept samples.
 fn supported_samples(
     primitive: &Primitive,
     segment: &[usize],
     points: &[Point3<f64>],
     spacing: f64,
-) -> (Vec<Point3<f64>>, bool) {
+) -> (Vec<Point3<f64>>, bool, Option<TubeLattice>) {
     let local = primitive.shape.sample_surface(spacing);
-    let sectors: Option<Vec<Point3<f64>>> = match primitive.shape {
-        Shape::Cylinder { .. } => {
-            let sector = |p: &Point3<f64>| {
-                let t = p.y.atan2(p.x).rem_euclid(std::f64::consts::TAU);
-                ((t / std::f64::consts::TAU * TUBE_SECTORS as f64) as usize).min(TUBE_SECTORS - 1)
-            };
-            let mut occupied = [false; TUBE_SECTORS];
-            for &i in segment {
-                occupied[sector(&primitive.pose.to_local(&points[i]))] = true;
-            }
-            let near = |k: usize| {
-                occupied[k]
-                    || occupied[(k + 1) % TUBE_SECTORS]
-                    || occupied[(k + TUBE_SECTORS - 1) % TUBE_SECTORS]
-            };
-            Some(local.iter().filter(|p| near(sector(p))).copied().collect())
-        }
+    let keep = match primitive.shape {
+        Shape::Cylinder { .. } => Some(in_occupied_sectors(primitive, segment, points, &local)),
         _ => None,
     };
-    let (kept, partial) = match sectors {
-        Some(part) if !part.is_empty() && part.len() < local.len() => (part, true),
-        _ => (local, false),
+    let to_scene = |p: &Point3<f64>| primitive.pose.to_scene(p);
+    match keep {
+        Some(keep) if keep.contains(&true) && keep.contains(&false) => {
+            let kept = local.iter().zip(&keep).filter(|(_, k)| **k);
+            let kept = kept.map(|(p, _)| to_scene(p)).collect();
+            // Every ring has the first one's angles; the lattice checks it.
+            let ring = local.iter().take_while(|p| p.z == local[0].z).count();
+            let lattice = TubeLattice::new(primitive.pose.clone(), &local, &keep[..ring]);
+            (kept, true, lattice)
+        }
+        _ => (local.iter().map(to_scene).collect(), false, None),
+    }
+}
+
+/// Per local sample of a cylinder, whether it lies in one of the angular sectors (or
+/// next to one, [`TUBE_SECTORS`]) that hold its segment's points.
+fn in_occupied_sectors(
+    primitive: &Primitive,
+    segment: &[usize],
+    points: &[Point3<f64>],
+    local: &[Point3<f64>],
+) -> Vec<bool> {
+    let sector = |p: &Point3<f64>| {
+        let t = p.y.atan2(p.x).rem_euclid(std::f64::consts::TAU);
+        ((t / std::f64::consts::TAU * TUBE_SECTORS as f64) as usize).min(TUBE_SECTORS - 1)
     };
-    let scene = kept.iter().map(|p| primitive.pose.to_scene(p)).collect();
-    (scene, partial)
+    let mut occupied = [false; TUBE_SECTORS];
+    for &i in segment {
+        occupied[sector(&primitive.pose.to_local(&points[i]))] = true;
+    }
+    let near = |k: usize| {
+        occupied[k]
+            || occupied[(k + 1) % TUBE_SECTORS]
+            || occupied[(k + TUBE_SECTORS - 1) % TUBE_SECTORS]
+    };
+    local.iter().map(|p| near(sector(p))).collect()
 }
 
 #[cfg(test)]
@@ -268,5 +287,63 @@ mod tests {
         assert_eq!(own_spacing(&points, &index, &members), expected);
         assert!(expected.unwrap() > 0.09, "{expected:?}");
         assert_eq!(own_spacing(&points, &index, &members[..1]), None);
+    }
+
+    /// A tube seen from one side keeps the samples of its occupied sectors, as a lattice
+    /// whose nearest-sample answers are those of a search over the kept samples; a tube
+    /// seen all round keeps every sample and needs no lattice.
+    #[test]
+    fn a_tube_seen_from_one_side_is_judged_by_a_lattice_of_its_kept_samples() {
+        use nalgebra::{UnitQuaternion, Vector3};
+        let pose = crate::Pose::new(
+            UnitQuaternion::from_euler_angles(0.4, 0.2, -0.7),
+            Vector3::new(1.0, 2.0, 0.5),
+        );
+        let tube = Primitive::new(
+            Shape::Cylinder {
+                length: 0.3,
+                radius: 0.05,
+            },
+            pose.clone(),
+        );
+        let around = |from: f64, to: f64| -> Vec<Point3<f64>> {
+            (0..400)
+                .map(|k| {
+                    let t = from + (to - from) * (k % 20) as f64 / 20.0;
+                    let z = 0.3 * ((k / 20) as f64 / 20.0 - 0.5);
+                    pose.to_scene(&Point3::new(0.05 * t.cos(), 0.05 * t.sin(), z))
+                })
+                .collect()
+        };
+        let front = around(0.0, 1.5);
+        let segment: Vec<usize> = (0..front.len()).collect();
+        let judged = judged_samples(&tube, &segment, &front, 0.004, 1e6);
+        assert!(judged.partial);
+        let lattice = judged
+            .tube
+            .as_ref()
+            .expect("a lattice for the partial tube");
+        let all = tube.shape.sample_surface(0.004).len();
+        assert!(
+            judged.points.len() < all / 2,
+            "{} of {all}",
+            judged.points.len()
+        );
+        for y in front.iter().step_by(7).chain(&around(3.0, 6.0)) {
+            let y = y + Vector3::new(0.01, -0.02, 0.03);
+            let brute = judged
+                .points
+                .iter()
+                .map(|q| (q - y).norm_squared())
+                .fold(f64::INFINITY, f64::min);
+            let got = lattice.nearest(&judged.points, &y).1;
+            assert!(
+                (got - brute).abs() <= 1e-12 * brute.max(1e-12),
+                "{got} vs {brute}"
+            );
+        }
+        let whole = judged_samples(&tube, &segment, &around(0.0, 6.3), 0.004, 1e6);
+        assert!(!whole.partial && whole.tube.is_none());
+        assert_eq!(whole.points.len(), all);
     }
 }

@@ -128,6 +128,7 @@ mod tests {
                 points: p.sample_surface(spacing),
                 weight: 1.0,
                 partial: false,
+                tube: None,
             })
             .collect()
     }

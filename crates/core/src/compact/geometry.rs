@@ -71,10 +71,16 @@ impl CandidateGeometry for Supported<'_> {
         g.bounding_ball(k)
     }
     fn nearest_sample(&self, i: usize, y: &Point3<f64>) -> (u32, f64) {
+        if let Some(tube) = &self.samples[i].tube {
+            return tube.nearest(&self.samples[i].points, y);
+        }
         let (g, k) = self.pick(i);
         g.nearest_sample(k, y)
     }
     fn surface_distance(&self, i: usize, y: &Point3<f64>) -> f64 {
+        if let Some(tube) = &self.samples[i].tube {
+            return tube.nearest(&self.samples[i].points, y).1;
+        }
         let (g, k) = self.pick(i);
         g.surface_distance(k, y)
     }

@@ -7,6 +7,7 @@
 //! | planes, cylinders and spheres found in the data | [`crate::detect`] |
 //! | candidates: a bounded `plane` per connected part of a planar segment, the bounded primitive of a curved one | `candidates.rs` |
 //! | description length of a primitive, in loss units | `mdl.rs` |
+//! | the nearest of a partial tube's samples, in constant time | `tube_lattice.rs` |
 //! | existence of the candidates | `existence.rs` |
 //! | the whole: [`compact_model`] | `model.rs` |
 
@@ -15,6 +16,7 @@ mod existence;
 mod geometry;
 mod mdl;
 mod model;
+mod tube_lattice;
 
 pub(crate) use mdl::primitive_cost;
 pub use model::{
