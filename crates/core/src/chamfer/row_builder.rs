@@ -140,6 +140,9 @@ pub(super) struct RowBuilder<'a, G: CandidateGeometry> {
     cell_radius: f64,
     /// The β best so far of the cell scan: a max-heap on `(squared distance, id)`.
     best: std::collections::BinaryHeap<Best>,
+    /// Whether a point of the current cell needed a search beyond the cell's list: the
+    /// list is then fetched again with the start radius that point left.
+    pub(super) cell_too_small: bool,
 }
 
 /// A measured candidate in [`RowBuilder::scan_cell`]'s heap, ordered by (squared distance,
@@ -181,6 +184,7 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             cell_sorted: Vec::new(),
             cell_radius: 0.0,
             best: std::collections::BinaryHeap::new(),
+            cell_too_small: false,
         }
     }
 
@@ -190,6 +194,7 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
     pub(super) fn load_cell(&mut self, key: u64, grid: &CellGrid) {
         let c = self.centres;
         self.cell_key = Some(key);
+        self.cell_too_small = false;
         self.cell_radius = self.start_radius.max(MIN_SEARCH_RADIUS);
         self.cell_centre = grid.centre(key);
         let reach = self.cell_radius + c.max_radius + grid.half_diagonal();
@@ -275,6 +280,7 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
                 return;
             }
             grow = true;
+            self.cell_too_small = true;
         }
         loop {
             if grow {
