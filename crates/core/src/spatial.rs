@@ -266,6 +266,14 @@ impl<'a> PrimitiveIndex<'a> {
     /// The nearest primitive surface to `p`: `(index, distance)`, or `None` for an
     /// empty index. Ties go to the lower index.
     pub fn nearest(&self, p: &Point3<f64>) -> Option<(usize, f64)> {
+        self.nearest_from(p, None)
+    }
+
+    /// [`Self::nearest`], measuring primitive `hint` first (a neighbouring point's
+    /// answer, which it shares more often than not): its distance bounds the search from
+    /// the start, in place of one nearest-centre query per radius class. The answer does
+    /// not depend on the hint.
+    pub fn nearest_from(&self, p: &Point3<f64>, hint: Option<usize>) -> Option<(usize, f64)> {
         let mut best: Option<(usize, f64)> = None;
         let consider = |i: usize, best: &mut Option<(usize, f64)>| {
             let d = self.prims[i].distance(p);
@@ -273,9 +281,14 @@ impl<'a> PrimitiveIndex<'a> {
                 *best = Some((i, d));
             }
         };
-        for class in &self.classes {
-            if let Some((k, _)) = class.tree.nearest(p) {
-                consider(class.ids[k as usize], &mut best);
+        match hint.filter(|&h| h < self.prims.len()) {
+            Some(h) => consider(h, &mut best),
+            None => {
+                for class in &self.classes {
+                    if let Some((k, _)) = class.tree.nearest(p) {
+                        consider(class.ids[k as usize], &mut best);
+                    }
+                }
             }
         }
         for class in &self.classes {
@@ -283,7 +296,7 @@ impl<'a> PrimitiveIndex<'a> {
             for (k, d2) in class.tree.within(p, bound * bound) {
                 let i = class.ids[k as usize];
                 let lower = d2.sqrt() - self.prims[i].bounding_radius();
-                if best.is_none_or(|(_, bd)| lower <= bd) {
+                if Some(i) != hint && best.is_none_or(|(_, bd)| lower <= bd) {
                     consider(i, &mut best);
                 }
             }
@@ -379,6 +392,19 @@ mod tests {
                 .fold(f64::INFINITY, f64::min);
             assert_eq!(d, brute, "{q}");
             assert_eq!(prims[i].distance(&q), d);
+            // Any hint, near or far (or out of range), gives the same answer.
+            for hint in [0, 3, 9, 10, 11] {
+                assert_eq!(
+                    index.nearest_from(&q, Some(hint)),
+                    Some((i, d)),
+                    "{q} from {hint}"
+                );
+            }
+        }
+        // Two squares at the same distance: the lower index, whatever the hint.
+        let q = Point3::new(4.5, 0.0, 0.0);
+        for hint in [None, Some(4), Some(5)] {
+            assert_eq!(index.nearest_from(&q, hint).unwrap().0, 4, "from {hint:?}");
         }
         assert!(
             PrimitiveIndex::new(&[])

@@ -39,16 +39,28 @@ mod overlap;
 
 pub use overlap::{DOUBLE_COVER_MAX_ANGLE_DEG, double_cover_share, overlap_share};
 
+/// Consecutive points per parallel task of [`point_to_model_distances`].
+const NEAREST_CHUNK: usize = 1024;
+
 /// For every point, the distance to the nearest surface of `model` (`+∞` when the model
 /// is empty). Parallel.
 pub fn point_to_model_distances(points: &[Point3<f64>], model: &[Primitive]) -> Result<Vec<f64>> {
     if model.is_empty() {
         return Ok(vec![f64::INFINITY; points.len()]);
     }
-    let index = PrimitiveIndex::new(model)?;
+    let index = &PrimitiveIndex::new(model)?;
+    // Chunks of consecutive points, each point's search starting from the previous
+    // one's answer (scans are stored in scan order, so neighbours share it).
     Ok(points
-        .par_iter()
-        .map(|p| index.nearest(p).map_or(f64::INFINITY, |(_, d)| d))
+        .par_chunks(NEAREST_CHUNK)
+        .flat_map_iter(|chunk| {
+            let mut hint = None;
+            chunk.iter().map(move |p| {
+                let nearest = index.nearest_from(p, hint);
+                hint = nearest.map(|(i, _)| i);
+                nearest.map_or(f64::INFINITY, |(_, d)| d)
+            })
+        })
         .collect())
 }
 
