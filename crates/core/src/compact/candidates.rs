@@ -228,7 +228,7 @@ fn supported_samples(
             let kept = kept.map(|(p, _)| to_scene(p)).collect();
             // Every ring has the first one's angles; the lattice checks it.
             let ring = local.iter().take_while(|p| p.z == local[0].z).count();
-            let lattice = TubeLattice::new(primitive.pose.clone(), &local, &keep[..ring]);
+            let lattice = TubeLattice::new(primitive.pose, &local, &keep[..ring]);
             (kept, true, lattice)
         }
         _ => (local.iter().map(to_scene).collect(), false, None),
@@ -304,7 +304,7 @@ mod tests {
                 length: 0.3,
                 radius: 0.05,
             },
-            pose.clone(),
+            pose,
         );
         let around = |from: f64, to: f64| -> Vec<Point3<f64>> {
             (0..400)

@@ -160,7 +160,7 @@ mod tests {
             Vector3::new(0.5, -0.2, 1.3),
         );
         pose.scale = 1.7;
-        let lattice = TubeLattice::new(pose.clone(), &local, &keep_angle).expect("a lattice");
+        let lattice = TubeLattice::new(pose, &local, &keep_angle).expect("a lattice");
         let scene = local
             .iter()
             .enumerate()
