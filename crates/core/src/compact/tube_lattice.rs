@@ -17,16 +17,21 @@ use nalgebra::Point3;
 
 use crate::Pose;
 
+/// How far (radians, or ring steps × rings) the samples may stray from equal angles and
+/// equal ring steps and still be taken as a lattice: rounding only. The query's one extra
+/// angle and ring on each side absorb far more.
+const LAYOUT_TOLERANCE: f64 = 1e-9;
+
 /// A tube's kept samples as a lattice of rings and kept angles (module docs).
 #[derive(Debug, Clone)]
 pub(super) struct TubeLattice {
     /// The tube's pose (its samples are `pose.to_scene` of the local ones).
     pose: Pose,
-    /// Angle of local sample 0 and the angular step between samples of a ring (radians).
+    /// Angle of local sample 0 (radians); sample `j` of a ring is at `theta0 + 2π j / n_θ`.
     theta0: f64,
     /// Samples per ring before sectors are dropped.
     n_theta: usize,
-    /// Local height of ring 0 and the step between rings (tube units).
+    /// Local height of ring 0 and the (positive) step between rings (tube units).
     z0: f64,
     dz: f64,
     /// Rings.
@@ -55,10 +60,21 @@ impl TubeLattice {
             let (k, j) = (s / n_theta, s % n_theta);
             local[s].z == ring_z(k) && local[s].x == local[j].x && local[s].y == local[j].y
         });
+        let theta0 = local[0].y.atan2(local[0].x);
+        let equal_angles = (0..n_theta).all(|j| {
+            let off = (local[j].y.atan2(local[j].x) - theta0).rem_euclid(TAU);
+            let miss = (off - TAU * j as f64 / n_theta as f64).abs();
+            miss.min(TAU - miss) <= LAYOUT_TOLERANCE
+        });
+        let (z0, dz) = (ring_z(0), if n_z > 1 { ring_z(1) - ring_z(0) } else { 1.0 });
+        let equal_rings = dz > 0.0
+            && (0..n_z).all(|k| {
+                (ring_z(k) - z0 - k as f64 * dz).abs() <= LAYOUT_TOLERANCE * dz * n_z as f64
+            });
         let kept: Vec<u32> = (0..n_theta as u32)
             .filter(|&j| keep_angle[j as usize])
             .collect();
-        if !is_lattice || kept.is_empty() {
+        if !(is_lattice && equal_angles && equal_rings) || kept.is_empty() {
             return None;
         }
         let mut rank = vec![u32::MAX; n_theta];
@@ -67,10 +83,10 @@ impl TubeLattice {
         }
         Some(TubeLattice {
             pose,
-            theta0: local[0].y.atan2(local[0].x),
+            theta0,
             n_theta,
-            z0: ring_z(0),
-            dz: if n_z > 1 { ring_z(1) - ring_z(0) } else { 1.0 },
+            z0,
+            dz,
             n_z,
             down: circular_nearest(keep_angle, false),
             up: circular_nearest(keep_angle, true),
@@ -239,5 +255,19 @@ mod tests {
         let local = [Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, 1.0, 0.5)];
         assert!(TubeLattice::new(Pose::identity(), &local, &[true, true]).is_none());
         assert!(TubeLattice::new(Pose::identity(), &local[..1], &[false]).is_none());
+        // Unequal angles in a ring; two rings at one height.
+        let ring = |z: f64, angles: &[f64]| -> Vec<Point3<f64>> {
+            angles
+                .iter()
+                .map(|t| Point3::new(t.cos(), t.sin(), z))
+                .collect()
+        };
+        let uneven = ring(0.0, &[0.1, 0.5, 3.0]);
+        assert!(TubeLattice::new(Pose::identity(), &uneven, &[true, false, true]).is_none());
+        let even = [0.1, 0.1 + TAU / 3.0, 0.1 + 2.0 * TAU / 3.0];
+        let flat = [ring(0.0, &even), ring(0.0, &even)].concat();
+        assert!(TubeLattice::new(Pose::identity(), &flat, &[true, false, true]).is_none());
+        let stacked = [ring(0.0, &even), ring(0.5, &even)].concat();
+        assert!(TubeLattice::new(Pose::identity(), &stacked, &[true, false, true]).is_some());
     }
 }
