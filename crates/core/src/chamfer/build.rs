@@ -190,11 +190,7 @@ fn rows_in_cell_order<'a, G: CandidateGeometry + 'a>(
             let reserve = chunk.len() * row_bound;
             let (mut c, mut d) = (Vec::with_capacity(reserve), Vec::with_capacity(reserve));
             for &(key, j) in chunk {
-                // Fetched again when a point of the cell searched beyond its list: a new
-                // builder starts from ρ = √d_cap, far under the β-th distance of a scene
-                // with few candidates, and every later point of the cell (thousands on a
-                // dense scan) would otherwise search again from the tree.
-                if builder.cell_key != Some(key) || builder.cell_too_small {
+                if builder.needs_cell(key) {
                     builder.load_cell(key, cell);
                 }
                 let before = c.len();

@@ -134,7 +134,7 @@ pub(super) struct RowBuilder<'a, G: CandidateGeometry> {
     /// The current cell, its centre `m`, and the candidates whose centre lies within
     /// `cell_radius + R_max` of every point of it as `(d_i(m), id)` (distance, not
     /// squared), ascending.
-    pub(super) cell_key: Option<u64>,
+    cell_key: Option<u64>,
     cell_centre: Point3<f64>,
     cell_sorted: Vec<(f64, u32)>,
     cell_radius: f64,
@@ -142,7 +142,7 @@ pub(super) struct RowBuilder<'a, G: CandidateGeometry> {
     best: std::collections::BinaryHeap<Best>,
     /// Whether a point of the current cell needed a search beyond the cell's list: the
     /// list is then fetched again with the start radius that point left.
-    pub(super) cell_too_small: bool,
+    cell_too_small: bool,
 }
 
 /// A measured candidate in [`RowBuilder::scan_cell`]'s heap, ordered by (squared distance,
@@ -186,6 +186,15 @@ impl<'a, G: CandidateGeometry> RowBuilder<'a, G> {
             best: std::collections::BinaryHeap::new(),
             cell_too_small: false,
         }
+    }
+
+    /// Whether the next point, in cell `key`, needs [`RowBuilder::load_cell`] first: a
+    /// new cell, or one whose list a point had to search beyond. A new builder starts
+    /// from ρ = √d_cap, far under the β-th distance of a scene with few candidates, and
+    /// every later point of the cell (thousands on a dense scan) would otherwise search
+    /// the tree again.
+    pub(super) fn needs_cell(&self, key: u64) -> bool {
+        self.cell_key != Some(key) || self.cell_too_small
     }
 
     /// Fetches the candidates near cell `key`: those a search of radius ρ (the current
