@@ -9,7 +9,7 @@ use super::row_builder::{CellGrid, CentreIndex, RowBuilder};
 use super::{CandidateGeometry, ChamferOptions, Coefficients, PointModel};
 use crate::error::{Error, Result, Unit};
 use crate::progress::Progress;
-use crate::spatial::PointIndex;
+use crate::spatial::{BoxTree, Hint, NearestDistance, PointIndex};
 
 /// Points per parallel work item when building coefficients.
 const BUILD_CHUNK: usize = 1024;
@@ -28,17 +28,21 @@ const CELLS_PER_RADIUS: f64 = 4.0;
 
 impl Coefficients {
     /// Computes g and the sorted point entries (thesis algorithms 4 and 6) in parallel.
+    ///
+    /// The primitive term's nearest points come from a [`BoxTree`] over `cloud`: candidate
+    /// samples beside the data are settled after a few of its leaves.
     pub fn build(
         cloud: &[Point3<f64>],
         geometry: &impl CandidateGeometry,
         options: &ChamferOptions,
         progress: &dyn Progress,
     ) -> Result<Self> {
-        Self::build_indexed(cloud, &PointIndex::new(cloud), geometry, options, progress)
+        Self::build_with(cloud, &BoxTree::new(cloud), geometry, options, progress)
     }
 
     /// [`Coefficients::build`] with `cloud_index`, a kd-tree over exactly `cloud`,
-    /// already built (a fit builds one for the whole pipeline).
+    /// already built: for candidates whose samples lie on the data (a fit's own
+    /// primitives), where the kd-tree is as fast and no second tree is built.
     pub fn build_indexed(
         cloud: &[Point3<f64>],
         cloud_index: &PointIndex,
@@ -46,12 +50,24 @@ impl Coefficients {
         options: &ChamferOptions,
         progress: &dyn Progress,
     ) -> Result<Self> {
+        Self::build_with(cloud, cloud_index, geometry, options, progress)
+    }
+
+    /// [`Coefficients::build`] with `nearest`, a tree over exactly `cloud`, already built
+    /// (the registration keeps a [`BoxTree`] for all its measurements).
+    pub(crate) fn build_with(
+        cloud: &[Point3<f64>],
+        nearest: &impl NearestDistance,
+        geometry: &impl CandidateGeometry,
+        options: &ChamferOptions,
+        progress: &dyn Progress,
+    ) -> Result<Self> {
         options.validate()?;
-        crate::check::same_len("indexed points", cloud_index.len(), "points", cloud.len())?;
+        crate::check::same_len("indexed points", nearest.len(), "points", cloud.len())?;
         let n = geometry.len();
         check_candidate_count(n)?;
         progress.start("primitive term", n as u64);
-        let g = primitive_coefficients(cloud_index, geometry, progress);
+        let g = primitive_coefficients(nearest, geometry, progress);
         progress.finish();
         let rows = PointRows::build(cloud, geometry, options, progress);
         Ok(rows.into_coefficients(g, options.clone()))
@@ -74,8 +90,9 @@ pub(super) fn check_candidate_count(n: usize) -> Result<()> {
 
 /// g_i for every candidate: sum over its samples of the squared distance to the nearest
 /// input point (thesis algorithm 4; squared scene units), in parallel over candidates.
+/// Each sample's search starts from the previous sample's nearest point.
 pub(crate) fn primitive_coefficients(
-    cloud_index: &PointIndex,
+    cloud: &impl NearestDistance,
     geometry: &impl CandidateGeometry,
     progress: &dyn Progress,
 ) -> Vec<f64> {
@@ -83,9 +100,10 @@ pub(crate) fn primitive_coefficients(
         .into_par_iter()
         .map_init(Vec::new, |buf, i| {
             geometry.scene_samples(i, buf);
+            let mut hint = Hint::default();
             let s = buf
                 .iter()
-                .map(|x| cloud_index.nearest(x).map_or(f64::INFINITY, |r| r.1))
+                .map(|x| cloud.nearest_distance(x, &mut hint))
                 .sum();
             progress.advance(1);
             s

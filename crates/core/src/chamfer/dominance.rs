@@ -29,7 +29,7 @@ use rayon::prelude::*;
 use super::{CandidateGeometry, ChamferOptions, Coefficients, PointRows, check_candidate_count};
 use crate::Result;
 use crate::progress::Progress;
-use crate::spatial::PointIndex;
+use crate::spatial::{BoxTree, Hint};
 
 /// Coefficients over the candidates that can exist, and which candidates those are.
 #[derive(Debug, Clone)]
@@ -54,21 +54,19 @@ impl Reduced {
 impl Coefficients {
     /// Like [`Coefficients::build`], then drops the dominated candidates (module docs):
     /// the minimisers of the reduced loss, padded with `p = 0` for the dropped candidates,
-    /// are exactly the minimisers of the full loss. `cloud_index` must index `cloud` (the
-    /// fitter's own, so that a large cloud's tree is not built twice).
+    /// are exactly the minimisers of the full loss.
+    ///
+    /// The primitive term's nearest points come from a [`BoxTree`] over `cloud`, built
+    /// here and dropped after: most samples of a lattice lie beside the data, where its
+    /// tight boxes settle a query after a few leaves (the 20k pipe: 3× faster than the
+    /// kd-tree, identical sums).
     pub fn build_reduced(
         cloud: &[Point3<f64>],
-        cloud_index: &PointIndex,
         geometry: &impl CandidateGeometry,
         options: &ChamferOptions,
         progress: &dyn Progress,
     ) -> Result<Reduced> {
         options.validate()?;
-        debug_assert_eq!(
-            cloud_index.len(),
-            cloud.len(),
-            "cloud_index must index cloud"
-        );
         let n = geometry.len();
         check_candidate_count(n)?;
         let mut rows = PointRows::build(cloud, geometry, options, progress);
@@ -76,11 +74,12 @@ impl Coefficients {
 
         let savings = savings_bounds(&rows, n, options.cap);
         progress.start("primitive term", n as u64);
+        let boxes = BoxTree::new(cloud);
         let bounded: Vec<Bounded> = (0..n)
             .into_par_iter()
             .map_init(Vec::new, |buf, i| {
                 geometry.scene_samples(i, buf);
-                let b = bounded_primitive_term(cloud_index, buf, |g| wp * g > wq * savings[i]);
+                let b = bounded_primitive_term(&boxes, buf, |g| wp * g > wq * savings[i]);
                 progress.advance(1);
                 b
             })
@@ -181,14 +180,15 @@ const VISIT_OFFSETS: [usize; 8] = [0, 4, 2, 6, 1, 5, 3, 7];
 
 /// `Σ_{x∈samples} min_y ‖x − y‖²`, stopping (inexact) as soon as `dominated(partial sum)`.
 fn bounded_primitive_term(
-    cloud_index: &PointIndex,
+    cloud: &BoxTree,
     samples: &[Point3<f64>],
     dominated: impl Fn(f64) -> bool,
 ) -> Bounded {
     let mut sum = 0.0;
+    let mut hint = Hint::default();
     for offset in VISIT_OFFSETS {
         for x in samples.iter().skip(offset).step_by(VISIT_OFFSETS.len()) {
-            sum += cloud_index.nearest(x).map_or(f64::INFINITY, |r| r.1);
+            sum += cloud.nearest(x, &mut hint);
             if dominated(sum) {
                 return Bounded { sum, exact: false };
             }
@@ -282,9 +282,7 @@ mod tests {
     fn build(pr: &Problem, o: &ChamferOptions) -> (Coefficients, Reduced) {
         let sets = SampleSets::new(&pr.samples, &pr.owner, pr.n).unwrap();
         let full = Coefficients::build(&pr.cloud, &sets, o, &Silent).unwrap();
-        let reduced =
-            Coefficients::build_reduced(&pr.cloud, &PointIndex::new(&pr.cloud), &sets, o, &Silent)
-                .unwrap();
+        let reduced = Coefficients::build_reduced(&pr.cloud, &sets, o, &Silent).unwrap();
         (full, reduced)
     }
 

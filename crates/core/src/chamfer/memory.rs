@@ -68,7 +68,7 @@ pub fn check_memory(
 }
 
 /// Bytes per input point besides the coefficients in [`estimate_bytes`]: the cloud
-/// (24), the KD-tree built over it (~28, shared by the settings and the primitive term),
-/// the build's cell order (12), and the polish's per-point owner and cost (12), rounded
-/// up.
-pub const BYTES_PER_POINT: u64 = 96;
+/// (24), the KD-tree built over it (~28, for the settings), the primitive term's box tree
+/// (~35: a copy of the points and a 64-byte node per 6 points), the build's cell order
+/// (12), and the polish's per-point owner and cost (12), rounded up.
+pub const BYTES_PER_POINT: u64 = 128;

@@ -134,13 +134,8 @@ pub(super) fn fit_pass(
 
     let t1 = Instant::now();
     // Exact: a dominated candidate has p = 0 at every minimum (`chamfer::dominance`).
-    let reduced = Coefficients::build_reduced(
-        &cloud.points,
-        index,
-        &candidates,
-        &settings.chamfer,
-        progress,
-    )?;
+    let reduced =
+        Coefficients::build_reduced(&cloud.points, &candidates, &settings.chamfer, progress)?;
     let lattice_candidates = candidates.len();
     candidates.retain(&reduced.keep_mask(lattice_candidates));
     let mut coeffs = reduced.coefficients;

@@ -104,7 +104,7 @@ use rand_chacha::ChaCha8Rng;
 
 use crate::atlas::{MeshShape, Shape};
 use crate::progress::Progress;
-use crate::spatial::PointIndex;
+use crate::spatial::{BoxTree, PointIndex};
 use crate::{Error, PointCloud, Pose, Result, Stopwatch};
 use choice::Unexplained;
 use geometry::DistanceGrid;
@@ -169,6 +169,7 @@ fn context<'a>(
     let context = Context {
         cloud: &cloud.points,
         cloud_index: PointIndex::new(&cloud.points),
+        cloud_boxes: BoxTree::new(&cloud.points),
         grid: grid.clone(),
         mesh: mesh.clone(),
         hull: samples.iter().map(|p| p - centre).collect(),

@@ -19,7 +19,7 @@ use crate::atlas::MeshShape;
 use crate::chamfer::{ChamferOptions, PointModel};
 use crate::lattice::Template;
 use crate::progress::Progress;
-use crate::spatial::PointIndex;
+use crate::spatial::{BoxTree, PointIndex};
 use crate::{Pose, Result};
 
 #[cfg(test)]
@@ -59,6 +59,8 @@ pub(crate) struct Context<'a> {
     pub cloud: &'a [Point3<f64>],
     /// A kd-tree over `cloud`.
     pub cloud_index: PointIndex,
+    /// A box tree over `cloud`: the primitive terms of the measurements.
+    pub cloud_boxes: BoxTree,
     pub grid: Arc<DistanceGrid>,
     pub mesh: MeshShape,
     pub template_spacing: f64,

@@ -35,7 +35,7 @@ impl Context<'_> {
     pub fn scores(&self, found: &[Pose], poses: Vec<Pose>, kernel: f64, support: f64) -> Vec<f64> {
         let level = self.outlier_level(kernel);
         let particles = Particles::new(self.template(), self.grid.clone(), poses);
-        let g = primitive_coefficients(&self.cloud_index, &particles, &Silent);
+        let g = primitive_coefficients(&self.cloud_boxes, &particles, &Silent);
         let background = Particles::new(self.template(), self.grid.clone(), found.to_vec());
         self.scores_with(&level, &background, &particles, &g, support)
             .0
@@ -66,7 +66,7 @@ impl Context<'_> {
         };
         let options = self.chamfer(kernel);
         let mut coeffs =
-            Coefficients::build_indexed(self.cloud, &self.cloud_index, &all, &options, &Silent)?;
+            Coefficients::build_with(self.cloud, &self.cloud_boxes, &all, &options, &Silent)?;
         let offset = fixed.len();
         let (score, weight) = self.scores_with(
             &level,

@@ -14,6 +14,37 @@ use rayon::prelude::*;
 
 use crate::{Error, Primitive, Result};
 
+mod box_tree;
+pub(crate) use box_tree::{BoxTree, Hint};
+
+/// Squared distances to the nearest indexed point for runs of nearby queries: `hint`
+/// carries where the last query's search ended (used by [`BoxTree`], ignored by
+/// [`PointIndex`]); the distance never depends on it.
+pub(crate) trait NearestDistance: Sync {
+    /// Number of indexed points.
+    fn len(&self) -> usize;
+    /// Squared distance from `q` to the nearest point (infinite when there is none).
+    fn nearest_distance(&self, q: &Point3<f64>, hint: &mut Hint) -> f64;
+}
+
+impl NearestDistance for PointIndex {
+    fn len(&self) -> usize {
+        self.len
+    }
+    fn nearest_distance(&self, q: &Point3<f64>, _: &mut Hint) -> f64 {
+        self.nearest(q).map_or(f64::INFINITY, |r| r.1)
+    }
+}
+
+impl NearestDistance for BoxTree {
+    fn len(&self) -> usize {
+        BoxTree::len(self)
+    }
+    fn nearest_distance(&self, q: &Point3<f64>, hint: &mut Hint) -> f64 {
+        self.nearest(q, hint)
+    }
+}
+
 /// A static KD-tree over points (kiddo's `ImmutableKdTree<f64, 3>`), tolerant of empty input.
 pub struct PointIndex {
     tree: Option<ImmutableKdTree<f64, 3>>,
