@@ -5,7 +5,7 @@
 //! default, or `beta = inf`, fits in memory and runs for many minutes. The estimate
 //! counts what such settings multiply:
 //!
-//! * the primitive term: one kd-tree query per candidate sample (`Σ M_i`);
+//! * the primitive term: one nearest-point query per candidate sample (`Σ M_i`);
 //! * the point term: one query per (point, candidate) entry, `P · β` (β capped by the
 //!   candidate count; the independent model's α samples come from the same query);
 //! * the solver: every entry evaluated twice per L-BFGS iteration, up to
