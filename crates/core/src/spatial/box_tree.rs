@@ -298,6 +298,34 @@ mod tests {
     }
 
     #[test]
+    fn a_tree_built_in_parallel_answers_the_same() {
+        // Above PARALLEL_BUILD_POINTS the halves are built by separate tasks and their
+        // nodes renumbered when joined.
+        let mut rng = rand::rngs::StdRng::seed_from_u64(9);
+        let mut pts = surfaces(&mut rng);
+        while pts.len() <= 2 * PARALLEL_BUILD_POINTS {
+            pts.extend_from_within(..5000);
+            let k = pts.len() - 5000;
+            for p in &mut pts[k..] {
+                p.x += 2.5 * (k / 5000) as f64;
+            }
+        }
+        let tree = BoxTree::new(&pts);
+        let kd = PointIndex::new(&pts);
+        let mut hint = Hint::default();
+        for k in 0..2000 {
+            let c = pts[(k * 7919) % pts.len()];
+            let q = c + nalgebra::Vector3::new(0.0, 0.0, [0.0, 0.05, 0.4, 2.0][k % 4]);
+            let got = tree.nearest(&q, &mut hint);
+            assert_eq!(
+                got.to_bits(),
+                kd.nearest(&q).unwrap().1.to_bits(),
+                "query {k}"
+            );
+        }
+    }
+
+    #[test]
     fn small_and_empty_inputs() {
         assert_eq!(
             BoxTree::new(&[]).nearest(&Point3::origin(), &mut Hint::default()),
