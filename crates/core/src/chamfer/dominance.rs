@@ -58,8 +58,8 @@ impl Coefficients {
     ///
     /// The primitive term's nearest points come from a [`BoxTree`] over `cloud`, built
     /// here and dropped after: most samples of a lattice lie beside the data, where its
-    /// tight boxes settle a query after a few leaves (the 20k pipe: 3× faster than the
-    /// kd-tree, identical sums).
+    /// tight boxes settle a query after a few leaves (same sums as the kd-tree's;
+    /// measured in docs/performance.md).
     pub fn build_reduced(
         cloud: &[Point3<f64>],
         geometry: &impl CandidateGeometry,
