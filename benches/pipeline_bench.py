@@ -6,8 +6,8 @@
 Every fit is its own `primfit` process (a fit under 2 s runs seven times and the run of
 median wall time is reported; the default's all-cores and one-thread runs alternate). Its
 wall time, CPU time (user + system) and peak RSS come from the operating system
-(``os.wait4``: ``ru_maxrss``), its per-stage times from ``primfit fit --timings`` (read, index, the detection's steps, existence, measures,
-output). Each scene runs:
+(``os.wait4``: ``ru_maxrss``), its per-stage times from ``primfit fit --timings`` (read,
+index, the detection's steps, existence, measures, output). Each scene runs:
 
 * the **default** pipeline (`primfit fit SCAN -o result.json`) on all cores and on one
   (``-j 1``), for the speed-up;

@@ -16,6 +16,7 @@ use std::f64::consts::TAU;
 use nalgebra::Point3;
 
 use crate::Pose;
+use crate::spatial::{as_array, squared_distance};
 
 /// How far (radians, or ring steps × rings) the samples may stray from equal angles and
 /// equal ring steps and still be taken as a lattice: rounding only. The query's one extra
@@ -120,9 +121,7 @@ impl TubeLattice {
         for k in ring.saturating_sub(1)..=(ring + 1).min(self.n_z - 1) {
             for &j in &angles {
                 let s = k * self.kept_per_ring + self.rank[j] as usize;
-                let q = &samples[s];
-                let (dx, dy, dz) = (y.x - q.x, y.y - q.y, y.z - q.z);
-                let d = dx * dx + dy * dy + dz * dz;
+                let d = squared_distance(&as_array(y), &as_array(&samples[s]));
                 if d < best.1 || (d == best.1 && (s as u32) < best.0) {
                     best = (s as u32, d);
                 }
@@ -189,8 +188,7 @@ mod tests {
     fn brute(samples: &[Point3<f64>], y: &Point3<f64>) -> (u32, f64) {
         let mut best = (u32::MAX, f64::INFINITY);
         for (s, q) in samples.iter().enumerate() {
-            let (dx, dy, dz) = (y.x - q.x, y.y - q.y, y.z - q.z);
-            let d = dx * dx + dy * dy + dz * dz;
+            let d = squared_distance(&as_array(y), &as_array(q));
             if d < best.1 {
                 best = (s as u32, d);
             }

@@ -15,6 +15,8 @@
 
 use nalgebra::Point3;
 
+use super::squared_distance;
+
 /// Most points of a leaf.
 const LEAF_POINTS: usize = 16;
 
@@ -133,13 +135,6 @@ impl BoxTree {
             }
         }
     }
-}
-
-/// `dx² + dy² + dz²`, in the order [`super::PointIndex`] sums them.
-#[inline]
-fn squared_distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
-    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
-    dx * dx + dy * dy + dz * dz
 }
 
 /// The squared distance from `q` to the node's box (0 inside): no larger than the

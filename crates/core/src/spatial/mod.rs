@@ -59,8 +59,17 @@ impl std::fmt::Debug for PointIndex {
     }
 }
 
-fn as_array(p: &Point3<f64>) -> [f64; 3] {
+pub(crate) fn as_array(p: &Point3<f64>) -> [f64; 3] {
     [p.x, p.y, p.z]
+}
+
+/// `dx² + dy² + dz²`, summed in the order kiddo's `SquaredEuclidean` sums it: every
+/// exact nearest-point search of the crate (kd-tree, [`BoxTree`], a partial tube's
+/// sample lattice) returns the same `f64` for the same pair of points.
+#[inline]
+pub(crate) fn squared_distance(a: &[f64; 3], b: &[f64; 3]) -> f64 {
+    let (dx, dy, dz) = (a[0] - b[0], a[1] - b[1], a[2] - b[2]);
+    dx * dx + dy * dy + dz * dz
 }
 
 impl PointIndex {
