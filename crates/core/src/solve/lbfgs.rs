@@ -184,6 +184,10 @@ fn search_direction(
 /// with the test on the actual step `P(x + t d) − x`. Writes the last point tried and its
 /// gradient into `x_new`, `g_new`; returns the accepted loss (`None` if no step within
 /// [`MAX_BACKTRACKS`] decreased the loss enough) and the evaluations used.
+///
+/// A halved step whose projection is the point already tried (every moving variable
+/// still at its bound, as when the direction overshoots the box many times over) fails
+/// the same test again, so it is not evaluated again: the same steps are accepted.
 fn line_search(
     (x, g, fx): (&[f64], &[f64], f64),
     d: &[f64],
@@ -195,8 +199,15 @@ fn line_search(
     let mut t = 1.0;
     let mut evaluations = 0;
     for _ in 0..MAX_BACKTRACKS {
+        let mut moved = evaluations == 0;
         for i in 0..x.len() {
-            x_new[i] = project(x[i] + t * d[i], unit_box);
+            let v = project(x[i] + t * d[i], unit_box);
+            moved |= v.to_bits() != x_new[i].to_bits();
+            x_new[i] = v;
+        }
+        t *= BACKTRACK_FACTOR;
+        if !moved {
+            continue;
         }
         let f_new = f(x_new, g_new);
         evaluations += 1;
@@ -208,7 +219,6 @@ fn line_search(
         if f_new.is_finite() && f_new <= fx + ARMIJO_C1 * decrease {
             return (Some(f_new), evaluations);
         }
-        t *= BACKTRACK_FACTOR;
     }
     (None, evaluations)
 }
@@ -337,6 +347,33 @@ mod tests {
             assert!((a - b).abs() < 1e-6, "{:?}", run.x);
         }
         assert!(run.history.windows(2).all(|w| w[1] <= w[0]));
+    }
+
+    /// On the box, shorter steps whose projection is still the bound are the same point:
+    /// each point is evaluated once.
+    #[test]
+    fn line_search_evaluates_each_projected_point_once() {
+        let x = [0.2];
+        let loss = |v: f64| (v - 0.5).powi(2) + 10.0 * (v - 0.6).max(0.0).powi(2);
+        let slope = |v: f64| 2.0 * (v - 0.5) + 20.0 * (v - 0.6).max(0.0);
+        let g = [slope(0.2)];
+        let (mut x_new, mut g_new) = ([0.0], [0.0]);
+        let mut tried = Vec::new();
+        let mut f = |x: &[f64], g: &mut [f64]| {
+            tried.push(x[0]);
+            g[0] = slope(x[0]);
+            loss(x[0])
+        };
+        let (accepted, evaluations) =
+            line_search((&x, &g, loss(0.2)), &[1000.0], true, &mut x_new, &mut g_new, &mut f);
+        assert!(accepted.unwrap() < loss(0.2));
+        assert_eq!(evaluations, tried.len());
+        // Halving from t = 1 keeps the bound 1 for ten steps (d = 1000).
+        assert_eq!(tried.iter().filter(|&&v| v == 1.0).count(), 1, "{tried:?}");
+        let mut distinct = tried.clone();
+        distinct.sort_by(f64::total_cmp);
+        distinct.dedup();
+        assert_eq!(distinct.len(), tried.len(), "{tried:?}");
     }
 
     #[test]
