@@ -364,8 +364,14 @@ mod tests {
             g[0] = slope(x[0]);
             loss(x[0])
         };
-        let (accepted, evaluations) =
-            line_search((&x, &g, loss(0.2)), &[1000.0], true, &mut x_new, &mut g_new, &mut f);
+        let (accepted, evaluations) = line_search(
+            (&x, &g, loss(0.2)),
+            &[1000.0],
+            true,
+            &mut x_new,
+            &mut g_new,
+            &mut f,
+        );
         assert!(accepted.unwrap() < loss(0.2));
         assert_eq!(evaluations, tried.len());
         // Halving from t = 1 keeps the bound 1 for ten steps (d = 1000).
