@@ -374,7 +374,7 @@ mod tests {
         );
         assert!(accepted.unwrap() < loss(0.2));
         assert_eq!(evaluations, tried.len());
-        // Halving from t = 1 keeps the bound 1 for ten steps (d = 1000).
+        // With d = 1000 the projection stays at the bound 1 from t = 1 down to t = 2⁻¹⁰.
         assert_eq!(tried.iter().filter(|&&v| v == 1.0).count(), 1, "{tried:?}");
         let mut distinct = tried.clone();
         distinct.sort_by(f64::total_cmp);
