@@ -15,13 +15,18 @@
 
 use nalgebra::Point3;
 
-use super::squared_distance;
+use super::{as_array, squared_distance};
 
 /// Most points of a leaf.
 const LEAF_POINTS: usize = 16;
 
 /// Subtrees of more points than this are built in parallel.
 const PARALLEL_BUILD_POINTS: usize = 1 << 15;
+
+/// Nodes a search may hold to open later: at most one per level of the tree, and median
+/// splits of at most `u32::MAX` points into leaves of [`LEAF_POINTS`] give fewer than 32
+/// levels.
+const SEARCH_STACK: usize = 64;
 
 /// A node: the tight box of its points; a leaf holds `points[first..first + count]`, an
 /// inner node (`count == 0`) has its left child next in the array and its right child
@@ -52,7 +57,7 @@ impl BoxTree {
     /// Builds the tree (in parallel for large inputs). Points must be finite; at most
     /// `u32::MAX` points.
     pub fn new(points: &[Point3<f64>]) -> Self {
-        let mut coords: Vec<[f64; 3]> = points.iter().map(|p| [p.x, p.y, p.z]).collect();
+        let mut coords: Vec<[f64; 3]> = points.iter().map(as_array).collect();
         let nodes = if coords.is_empty() {
             Vec::new()
         } else {
@@ -74,18 +79,18 @@ impl BoxTree {
     /// run of nearby queries each starts from the last one's answer; the distance does
     /// not depend on it.
     pub fn nearest(&self, q: &Point3<f64>, hint: &mut Hint) -> f64 {
-        let Some(first) = self.points.get(hint.0 as usize).or(self.points.first()) else {
+        if self.points.is_empty() {
             return f64::INFINITY;
-        };
-        let q = [q.x, q.y, q.z];
-        let mut best = squared_distance(&q, first);
+        }
         let mut best_at = if (hint.0 as usize) < self.points.len() {
             hint.0
         } else {
             0
         };
+        let q = as_array(q);
+        let mut best = squared_distance(&q, &self.points[best_at as usize]);
         // Nodes still to open, with their boxes' squared distances.
-        let mut stack = [(0u32, 0.0f64); 64];
+        let mut stack = [(0u32, 0.0f64); SEARCH_STACK];
         let mut depth = 0;
         let mut node = 0usize;
         loop {
@@ -264,7 +269,7 @@ mod tests {
             };
             let brute = pts
                 .iter()
-                .map(|p| squared_distance(&[q.x, q.y, q.z], &[p.x, p.y, p.z]))
+                .map(|p| squared_distance(&as_array(&q), &as_array(p)))
                 .fold(f64::INFINITY, f64::min);
             let got = tree.nearest(&q, &mut hint);
             assert_eq!(got.to_bits(), brute.to_bits(), "query {k}");
