@@ -147,6 +147,7 @@ pub mod ray;
 pub mod refine;
 pub mod register;
 pub mod render;
+mod schedule;
 pub mod solve;
 mod spatial;
 mod surface;

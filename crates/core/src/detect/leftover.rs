@@ -36,6 +36,7 @@ use super::merge::{Part, merge_parts};
 use super::normals::{Neighbourhoods, median};
 use super::plane::Moments;
 use super::{Detection, Segment, SurfaceModel};
+use crate::schedule::map_largest_first;
 use crate::spatial::PointIndex;
 
 /// Unassigned points closer than this many point spacings belong to one piece: about
@@ -77,12 +78,13 @@ impl Leftovers {
             .copied()
             .collect();
         left.sort_unstable();
-        let pieces = self.pieces(points, &left);
-        let found: Vec<Segment> = pieces
-            .into_par_iter()
-            .filter(|ids| ids.len() >= self.min_points)
-            .filter_map(|ids| self.curved(points, ids))
-            .collect();
+        let mut pieces = self.pieces(points, &left);
+        pieces.retain(|ids| ids.len() >= self.min_points);
+        let found: Vec<Segment> =
+            map_largest_first(pieces, Vec::len, |ids| self.curved(points, ids))
+                .into_iter()
+                .flatten()
+                .collect();
         if found.is_empty() && reclassified == 0 {
             return;
         }

@@ -52,7 +52,6 @@ mod split;
 mod tests;
 
 use nalgebra::Point3;
-use rayon::prelude::*;
 
 pub use model::SurfaceModel;
 
@@ -62,6 +61,7 @@ pub(crate) use normals::Neighbourhoods;
 pub(crate) use sample::{voxel_grid, voxel_subsample};
 
 use crate::check;
+use crate::schedule::map_largest_first;
 use crate::spatial::PointIndex;
 use crate::{Error, Primitive, Result, StageTimes, Stopwatch};
 use merge::{Part, merge_parts};
@@ -318,9 +318,9 @@ pub fn detect_timed(
         min_points,
         neighbours: grow.neighbours,
     };
-    let parts: Vec<Part> = regions
-        .into_par_iter()
-        .flat_map_iter(|ids| splitter.parts(ids))
+    let parts: Vec<Part> = map_largest_first(regions, Vec::len, |ids| splitter.parts(ids))
+        .into_iter()
+        .flatten()
         .collect();
     clock.lap("split");
     let angle = normals::median(&mut angles.clone()).unwrap_or(0.0);

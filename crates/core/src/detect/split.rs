@@ -26,6 +26,7 @@ use super::classify::classify;
 use super::merge::Part;
 use super::normals::{Neighbourhoods, median};
 use super::plane::Moments;
+use crate::schedule::map_largest_first;
 
 /// Tangent planes tried as the dominant plane of a region.
 pub const PLANE_CANDIDATES: usize = 8;
@@ -125,17 +126,12 @@ impl Splitter<'_> {
             .into_iter()
             .filter(|c| c.len() >= self.min_points);
         // The pieces are disjoint: split in parallel, kept in order (deterministic).
-        let split: Vec<Vec<Part>> = pieces
-            .into_iter()
-            .chain(rest)
-            .collect::<Vec<_>>()
-            .into_par_iter()
-            .map(|piece| {
-                let mut parts = Vec::new();
-                self.split(piece, depth + 1, &mut parts);
-                parts
-            })
-            .collect();
+        let pieces: Vec<Vec<usize>> = pieces.into_iter().chain(rest).collect();
+        let split = map_largest_first(pieces, Vec::len, |piece| {
+            let mut parts = Vec::new();
+            self.split(piece, depth + 1, &mut parts);
+            parts
+        });
         out.extend(split.into_iter().flatten());
     }
 
