@@ -10,13 +10,45 @@
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::spatial::PointIndex;
+use crate::spatial::{PointIndex, strided_quantile};
 use crate::surface::pca_plane;
 
 /// The flatness given to a point whose neighbourhood is degenerate (all neighbours
 /// coincide or are collinear): the isotropic value 1/3, so it never seeds or propagates
 /// a region.
 const DEGENERATE_FLATNESS: f64 = 1.0 / 3.0;
+
+/// Points probed for the typical `k`-th neighbour distance of a cloud; a cloud of fewer
+/// than [`KTH_DISTANCE_PROBE_STRIDE`] times as many points is searched without a guess
+/// (on leftover pieces of a few hundred points the guess saved nothing, measured).
+const KTH_DISTANCE_PROBES: usize = 256;
+const KTH_DISTANCE_PROBE_STRIDE: usize = 16;
+
+/// The quantile of the probed `k`-th neighbour distances, and the factor above it, that
+/// each point's neighbour search starts from as a radius search (results are exact
+/// whatever the radius; [`PointIndex::nearest_n_guessed`]). With 0.9 and 1.1, 4 % of
+/// the searches of 20k points on planes and a cylinder fell back to a k-nearest search
+/// and the 32-nearest searches took 35 % less time than k-nearest searches alone (best
+/// of 0.5–0.9 × 1.0–1.25, measured).
+const KTH_DISTANCE_QUANTILE: f64 = 0.9;
+const KTH_DISTANCE_MARGIN: f64 = 1.1;
+
+/// A squared radius that holds the `k` nearest neighbours of most of `points` (scene
+/// units²), or `None` for a small cloud or one whose points have no `k` distinct
+/// neighbours.
+fn kth_distance_guess(points: &[Point3<f64>], index: &PointIndex, k: usize) -> Option<f64> {
+    if points.len() < KTH_DISTANCE_PROBES * KTH_DISTANCE_PROBE_STRIDE {
+        return None;
+    }
+    let kth = |i: usize| index.nearest_n(&points[i], k).last().map(|h| h.1);
+    strided_quantile(
+        points.len(),
+        KTH_DISTANCE_PROBES,
+        KTH_DISTANCE_QUANTILE,
+        kth,
+    )
+    .map(|d2| d2 * KTH_DISTANCE_MARGIN * KTH_DISTANCE_MARGIN)
+}
 
 /// Normals, curvature and neighbour lists of a set of points.
 #[derive(Debug, Clone)]
@@ -51,6 +83,7 @@ impl Neighbourhoods {
             residual: vec![0.0; n],
             radius: vec![0.0; n],
         };
+        let guess = kth_distance_guess(points, index, k);
         (
             out.neighbours.par_chunks_mut(k),
             &mut out.normals,
@@ -63,7 +96,10 @@ impl Neighbourhoods {
             .for_each_init(
                 Vec::new,
                 |local, (i, (row, normal, flatness, residual, radius))| {
-                    let hits = index.nearest_n(&points[i], k);
+                    let hits = match guess {
+                        Some(r2) => index.nearest_n_guessed(&points[i], k, r2),
+                        None => index.nearest_n(&points[i], k),
+                    };
                     local.clear();
                     local.extend(hits.iter().map(|(j, _)| points[*j as usize]));
                     *radius = hits.last().map_or(0.0, |h| h.1.sqrt());

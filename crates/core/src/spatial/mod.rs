@@ -128,6 +128,35 @@ impl PointIndex {
         out
     }
 
+    /// The `k` nearest points, as [`Self::nearest_n`] returns them, searched first
+    /// within the squared distance `guess` (scene units²). The answer does not depend on
+    /// the guess; the search is fastest when the guess is a little above the `k`-th
+    /// squared distance, where a radius search gathers the candidates for less than a
+    /// k-nearest search (kiddo keeps its `k` best sorted as it goes).
+    pub fn nearest_n_guessed(&self, q: &Point3<f64>, k: usize, guess: f64) -> Vec<(u32, f64)> {
+        let k = k.min(self.len);
+        let mut found = self.within(q, guess);
+        if k == 0 || found.len() < k {
+            return self.nearest_n(q, k);
+        }
+        let by_distance = |a: &(u32, f64), b: &(u32, f64)| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0));
+        if found.len() > k {
+            found.select_nth_unstable_by(k, by_distance);
+            let kth = found[..k]
+                .iter()
+                .map(|h| h.1)
+                .fold(f64::NEG_INFINITY, f64::max);
+            if found[k].1 == kth {
+                // A tie across the k-th place: which of the tied points are kept is the
+                // k-nearest search's choice, so that it answers as `nearest_n`.
+                return self.nearest_n(q, k);
+            }
+            found.truncate(k);
+        }
+        found.sort_by(by_distance);
+        found
+    }
+
     /// The distance from `q`, one of the indexed points, to the nearest other one
     /// (0 for an exact duplicate; `None` when fewer than two points are indexed): its
     /// local point spacing.
@@ -176,8 +205,19 @@ pub(crate) fn strided_median(
     max_probe: usize,
     distance: impl Fn(usize) -> Option<f64> + Sync + Send,
 ) -> Option<f64> {
+    strided_quantile(n, max_probe, 0.5, distance)
+}
+
+/// The `quantile` (in [0, 1]; 0.5: the median) of the positive values of `distance(i)`
+/// over up to `max_probe` evenly strided `i` in `0..n` (`None` where it has none).
+pub(crate) fn strided_quantile(
+    n: usize,
+    max_probe: usize,
+    quantile: f64,
+    distance: impl Fn(usize) -> Option<f64> + Sync + Send,
+) -> Option<f64> {
     let stride = (n / max_probe.max(1)).max(1);
-    // In parallel; the median of the collected values does not depend on their order.
+    // In parallel; a quantile of the collected values does not depend on their order.
     let mut d: Vec<f64> = (0..n)
         .into_par_iter()
         .step_by(stride)
@@ -187,9 +227,9 @@ pub(crate) fn strided_median(
     if d.is_empty() {
         return None;
     }
-    let mid = d.len() / 2;
-    d.select_nth_unstable_by(mid, f64::total_cmp);
-    Some(d[mid])
+    let at = ((d.len() as f64 * quantile.clamp(0.0, 1.0)) as usize).min(d.len() - 1);
+    d.select_nth_unstable_by(at, f64::total_cmp);
+    Some(d[at])
 }
 
 /// A static KD-tree over 2-D points (kiddo's `ImmutableKdTree<f64, 2>`), tolerant of
@@ -374,6 +414,42 @@ mod tests {
         let mut bw: Vec<u32> = brute.iter().filter(|r| r.1 <= 1.5).map(|r| r.0).collect();
         bw.sort();
         assert_eq!(w, bw);
+    }
+
+    #[test]
+    fn a_guessed_search_answers_as_the_k_nearest_search_whatever_the_guess() {
+        // Jittered points (no ties) and the grid (ties across the k-th place at every
+        // lattice query), guesses from far below to far above the k-th distance.
+        let mut jittered = Vec::new();
+        let mut s = 7u64;
+        let mut unit = || {
+            s = s
+                .wrapping_mul(6364136223846793005)
+                .wrapping_add(1442695040888963407);
+            (s >> 11) as f64 / (1u64 << 53) as f64
+        };
+        for _ in 0..300 {
+            jittered.push(Point3::new(unit() * 4.0, unit() * 4.0, 0.1 * unit()));
+        }
+        for pts in [jittered, grid()] {
+            let idx = PointIndex::new(&pts);
+            let queries = pts
+                .iter()
+                .copied()
+                .chain([Point3::new(2.0, 2.0, 0.0), Point3::new(9.0, 9.0, 1.0)]);
+            for q in queries {
+                for k in [1, 4, 9, 25, 40] {
+                    let exact = idx.nearest_n(&q, k);
+                    for guess in [0.0, 0.3, 1.0, 2.0, 5.0, 100.0] {
+                        assert_eq!(
+                            idx.nearest_n_guessed(&q, k, guess),
+                            exact,
+                            "{q} {k} {guess}"
+                        );
+                    }
+                }
+            }
+        }
     }
 
     #[test]
