@@ -11,7 +11,7 @@
 
 use std::collections::VecDeque;
 
-use super::normals::Neighbourhoods;
+use super::normals::{FlatnessOrder, Neighbourhoods};
 
 /// The thresholds of one run of [`grow_regions`], per point where the noise varies.
 #[derive(Debug, Clone, PartialEq)]
@@ -30,16 +30,18 @@ pub struct GrowParams {
 /// they were started. Points with a zero normal (degenerate neighbourhoods) never seed
 /// or join a region; every other point ends in exactly one region (possibly a region of
 /// one point).
-pub fn grow_regions(nb: &Neighbourhoods, params: &GrowParams) -> Vec<Vec<usize>> {
+pub fn grow_regions(
+    nb: &Neighbourhoods,
+    flatness: &FlatnessOrder,
+    params: &GrowParams,
+) -> Vec<Vec<usize>> {
     let n = nb.len();
-    let mut order: Vec<usize> = (0..n).collect();
-    order.sort_by(|&a, &b| nb.flatness[a].total_cmp(&nb.flatness[b]).then(a.cmp(&b)));
     let usable = |i: usize| nb.normals[i] != nalgebra::Vector3::zeros();
     let mut label = vec![false; n];
     let mut regions = Vec::new();
     let mut queue = VecDeque::new();
     let take = params.neighbours.min(nb.k.saturating_sub(1));
-    for &seed in &order {
+    for seed in flatness.order.iter().map(|&i| i as usize) {
         if label[seed] || !usable(seed) {
             continue;
         }
@@ -92,7 +94,7 @@ mod tests {
             cos_angle: vec![10f64.to_radians().cos(); pts.len()],
             max_residual: vec![1e-3; pts.len()],
         };
-        let regions = grow_regions(&nb, &params);
+        let regions = grow_regions(&nb, &FlatnessOrder::new(&nb), &params);
         let big: Vec<&Vec<usize>> = regions.iter().filter(|r| r.len() > 100).collect();
         assert_eq!(
             big.len(),

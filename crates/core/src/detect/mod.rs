@@ -65,6 +65,7 @@ use crate::schedule::map_largest_first;
 use crate::spatial::PointIndex;
 use crate::{Error, Primitive, Result, StageTimes, Stopwatch};
 use merge::{Part, merge_parts};
+use normals::FlatnessOrder;
 use split::Splitter;
 
 mod merge;
@@ -304,7 +305,8 @@ pub fn detect_timed(
         .min_points
         .unwrap_or(MIN_SEGMENT_NEIGHBOURHOODS * nb.k)
         .max(3);
-    let regions: Vec<Vec<usize>> = grow_regions(&nb, &grow)
+    let flatness = FlatnessOrder::new(&nb);
+    let regions: Vec<Vec<usize>> = grow_regions(&nb, &flatness, &grow)
         .into_iter()
         .filter(|r| r.len() >= min_points)
         .collect();
@@ -312,6 +314,7 @@ pub fn detect_timed(
     let splitter = Splitter {
         samples: &samples,
         nb: &nb,
+        flatness: &flatness,
         model_sigma: &model_sigma,
         tolerance,
         spheres: options.spheres,

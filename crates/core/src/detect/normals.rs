@@ -123,6 +123,41 @@ impl Neighbourhoods {
     }
 }
 
+/// The points of a [`Neighbourhoods`] by increasing flatness (ties: lower index), the
+/// order region growing seeds in and the split draws its candidate planes from; sorted
+/// once, in parallel.
+#[derive(Debug, Clone)]
+pub struct FlatnessOrder {
+    /// Point indices, flattest first.
+    pub order: Vec<u32>,
+    /// Each point's place in `order`.
+    rank: Vec<u32>,
+}
+
+impl FlatnessOrder {
+    /// The order of the points of `nb`.
+    pub fn new(nb: &Neighbourhoods) -> Self {
+        let mut order: Vec<u32> = (0..nb.len() as u32).collect();
+        // Keys are distinct (index ties), so an unstable sort is the same on any thread
+        // count.
+        order.par_sort_unstable_by(|&a, &b| {
+            nb.flatness[a as usize]
+                .total_cmp(&nb.flatness[b as usize])
+                .then(a.cmp(&b))
+        });
+        let mut rank = vec![0u32; order.len()];
+        for (place, &i) in order.iter().enumerate() {
+            rank[i as usize] = place as u32;
+        }
+        FlatnessOrder { order, rank }
+    }
+
+    /// Sorts `ids` (point indices) flattest first, as [`Self::order`] lists them.
+    pub fn sort(&self, ids: &mut [usize]) {
+        ids.sort_unstable_by_key(|&i| self.rank[i]);
+    }
+}
+
 /// Writes point `me`'s neighbour row from its `hits` (sorted by distance): the point
 /// itself first (a duplicate point may tie with it), a short row padded with itself.
 fn fill_row(row: &mut [u32], hits: &[(u32, f64)], me: u32) {

@@ -24,7 +24,7 @@ use rayon::prelude::*;
 
 use super::classify::classify;
 use super::merge::Part;
-use super::normals::{Neighbourhoods, median};
+use super::normals::{FlatnessOrder, Neighbourhoods, median};
 use super::plane::Moments;
 use crate::schedule::map_largest_first;
 
@@ -44,6 +44,8 @@ pub struct Splitter<'a> {
     pub samples: &'a [Point3<f64>],
     /// Their neighbourhoods.
     pub nb: &'a Neighbourhoods,
+    /// The samples by flatness.
+    pub flatness: &'a FlatnessOrder,
     /// σ models are judged against, per sample (scene units).
     pub model_sigma: &'a [f64],
     /// Model tolerance `t`, in σ.
@@ -139,11 +141,7 @@ impl Splitter<'_> {
     /// within `limit` (scene units), or `None` when no candidate plane exists.
     fn dominant_plane(&self, ids: &[usize], limit: f64) -> Option<Vec<bool>> {
         let mut by_flatness: Vec<usize> = ids.to_vec();
-        by_flatness.sort_by(|&a, &b| {
-            self.nb.flatness[a]
-                .total_cmp(&self.nb.flatness[b])
-                .then(a.cmp(&b))
-        });
+        self.flatness.sort(&mut by_flatness);
         let half = by_flatness.len().div_ceil(2);
         let is_inlier = |i: usize, point: &Point3<f64>, normal: &Vector3<f64>| {
             (self.samples[i] - point).dot(normal).abs() <= limit
