@@ -3,7 +3,7 @@
 
     python benches/pipeline_bench.py --primfit target/release/primfit [--scenes a,b,…] [--out DIR]
 
-Every fit is its own `primfit` process (a fit under 2 s runs seven times and the run of
+Every fit is its own `primfit` process (a fit under 2 s runs 15 times and the run of
 median wall time is reported; the default's all-cores and one-thread runs alternate). Its
 wall time, CPU time (user + system) and peak RSS come from the operating system
 (``os.wait4``: ``ru_maxrss``), its per-stage times from ``primfit fit --timings`` (read,
@@ -80,7 +80,7 @@ def machine():
 # A fit shorter than this (seconds) is run REPEATS times and its median run reported:
 # a single run of a few hundred milliseconds moves by tens of per cent with the machine.
 SHORT_RUN = 2.0
-REPEATS = 7
+REPEATS = 15
 
 
 def run_fit(primfit, scan, flags, threads, out_dir, tag):
