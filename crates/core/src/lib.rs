@@ -16,8 +16,8 @@
 //! The crate root re-exports what a user calls; the modules below group the rest of a
 //! coherent API each. Everything else is private: the local-surface PCA (`surface`), the
 //! lattice frame (`frame`; its [`fit::FrameChoice`] is a fit option), the kd-trees
-//! (`spatial`; [`PointIndex`] is re-exported), and the small modules behind the root
-//! re-exports
+//! (`spatial`; [`PointIndex`] is re-exported), running uneven jobs on all cores
+//! (`schedule`), and the small modules behind the root re-exports
 //! (`cloud`, `primitive`, `error`, `check`, `limit`, `progress`).
 //!
 //! | at the root | what it is |

@@ -205,17 +205,18 @@ pub(crate) fn strided_median(
     max_probe: usize,
     distance: impl Fn(usize) -> Option<f64> + Sync + Send,
 ) -> Option<f64> {
-    strided_quantile(n, max_probe, 0.5, distance)
+    strided_quantiles(n, max_probe, [0.5], distance).map(|[median]| median)
 }
 
-/// The `quantile` (in [0, 1]; 0.5: the median) of the positive values of `distance(i)`
-/// over up to `max_probe` evenly strided `i` in `0..n` (`None` where it has none).
-pub(crate) fn strided_quantile(
+/// The `quantiles` (each in [0, 1]; 0.5: the median) of the positive values of
+/// `distance(i)` over up to `max_probe` evenly strided `i` in `0..n` (`None` where it
+/// has none).
+pub(crate) fn strided_quantiles<const N: usize>(
     n: usize,
     max_probe: usize,
-    quantile: f64,
+    quantiles: [f64; N],
     distance: impl Fn(usize) -> Option<f64> + Sync + Send,
-) -> Option<f64> {
+) -> Option<[f64; N]> {
     let stride = (n / max_probe.max(1)).max(1);
     // In parallel; a quantile of the collected values does not depend on their order.
     let mut d: Vec<f64> = (0..n)
@@ -227,9 +228,11 @@ pub(crate) fn strided_quantile(
     if d.is_empty() {
         return None;
     }
-    let at = ((d.len() as f64 * quantile.clamp(0.0, 1.0)) as usize).min(d.len() - 1);
-    d.select_nth_unstable_by(at, f64::total_cmp);
-    Some(d[at])
+    let last = d.len() - 1;
+    Some(quantiles.map(|q| {
+        let at = ((d.len() as f64 * q.clamp(0.0, 1.0)) as usize).min(last);
+        *d.select_nth_unstable_by(at, f64::total_cmp).1
+    }))
 }
 
 /// A static KD-tree over 2-D points (kiddo's `ImmutableKdTree<f64, 2>`), tolerant of
