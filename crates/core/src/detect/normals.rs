@@ -190,6 +190,8 @@ pub(super) fn median(values: &mut [f64]) -> Option<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     #[test]
     fn a_row_starts_with_its_point_and_is_padded_with_it() {
@@ -208,13 +210,8 @@ mod tests {
         // 6 400 points on a 1 m square (1.25 cm grid, jittered), and the same with as
         // many again on a 10 cm square, 100× denser: the radius that fits the sparse
         // part would gather thousands of points in the dense one.
-        let mut s = 11u64;
-        let mut unit = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(11);
+        let mut unit = || rng.random::<f64>();
         let even: Vec<Point3<f64>> = (0..6400)
             .map(|i| {
                 let (x, y) = ((i % 80) as f64, (i / 80) as f64);

@@ -392,6 +392,8 @@ impl<'a> PrimitiveIndex<'a> {
 mod tests {
     use super::*;
     use nalgebra::Vector3;
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
 
     fn grid() -> Vec<Point3<f64>> {
         (0..5)
@@ -424,13 +426,8 @@ mod tests {
         // Jittered points (no ties) and the grid (ties across the k-th place at every
         // lattice query), guesses from far below to far above the k-th distance.
         let mut jittered = Vec::new();
-        let mut s = 7u64;
-        let mut unit = || {
-            s = s
-                .wrapping_mul(6364136223846793005)
-                .wrapping_add(1442695040888963407);
-            (s >> 11) as f64 / (1u64 << 53) as f64
-        };
+        let mut rng = ChaCha8Rng::seed_from_u64(7);
+        let mut unit = || rng.random::<f64>();
         for _ in 0..300 {
             jittered.push(Point3::new(unit() * 4.0, unit() * 4.0, 0.1 * unit()));
         }
