@@ -431,7 +431,13 @@ mod tests {
         for _ in 0..300 {
             jittered.push(Point3::new(unit() * 4.0, unit() * 4.0, 0.1 * unit()));
         }
-        for pts in [jittered, grid()] {
+        // Many copies of the axis points at distance 1 from the origin, interleaved: the
+        // k-nearest search's choice among them is not the lowest indices.
+        let axes: Vec<Point3<f64>> = (0..200)
+            .map(|i| [Point3::new(1.0, 0.0, 0.0), Point3::new(0.0, -1.0, 0.0)][i % 2])
+            .chain([Point3::origin()])
+            .collect();
+        for pts in [jittered, grid(), axes] {
             let idx = PointIndex::new(&pts);
             let queries = pts
                 .iter()
