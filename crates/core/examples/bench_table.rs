@@ -42,7 +42,7 @@ use serde_json::{Value, json};
 /// (their cost grows faster than the point count at present); the polish state is still
 /// built, so its memory peak is a whole fit's.
 const DEFAULT_SCENES: &str =
-    "pipe-20k,pipe-20k-indep,hallway-100k,hallway-100k-indep,hallway-1m,hallway-10m-nopolish";
+    "pipe-20k,pipe-20k-indep,hallway-100k,hallway-100k-indep,hallway-1m,hallway-10m-nosweeps";
 
 /// Scenes the NumPy reference runs on by default (its 1M run takes minutes; 10M would
 /// not fit in memory as it stores dense rows).

@@ -34,9 +34,32 @@ pub struct BenchScene {
     pub points: usize,
     /// Point-term model of the fit.
     pub model: PointModel,
-    /// Whether the fit runs the discrete polish's sweeps (`-nopolish` in the name: no
-    /// sweeps, but the polish state, and so the memory peak, is still built).
-    pub polish: bool,
+    /// How much of the discrete polish the fit runs.
+    pub polish: Polish,
+}
+
+/// How much of the discrete polish a bench fit runs after thresholding.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Polish {
+    /// The fitter's default: the polish's sweeps.
+    Sweeps,
+    /// `-nosweeps`: no sweeps, but the polish state, and so the memory peak of a default
+    /// fit, is still built (the 10M memory check).
+    StateOnly,
+    /// `-nopolish`: threshold at 0.5 and stop, as the NumPy reference does (its work,
+    /// like for like).
+    Off,
+}
+
+impl Polish {
+    /// The scene-name suffix.
+    const fn suffix(self) -> &'static str {
+        match self {
+            Polish::Sweeps => "",
+            Polish::StateOnly => "-nosweeps",
+            Polish::Off => "-nopolish",
+        }
+    }
 }
 
 impl BenchScene {
@@ -46,7 +69,7 @@ impl BenchScene {
             kind,
             points,
             model,
-            polish: true,
+            polish: Polish::Sweeps,
         }
     }
 
@@ -60,16 +83,16 @@ impl BenchScene {
             PointModel::Existence => "",
             PointModel::Independent => "-indep",
         };
-        let polish = if self.polish { "" } else { "-nopolish" };
+        let polish = self.polish.suffix();
         format!("{kind}-{}{model}{polish}", count_label(self.points))
     }
 
     /// Parses a [`BenchScene::name`].
     pub fn parse(name: &str) -> Option<Self> {
-        let (name, polish) = match name.strip_suffix("-nopolish") {
-            Some(r) => (r, false),
-            None => (name, true),
-        };
+        let (name, polish) = [Polish::StateOnly, Polish::Off]
+            .into_iter()
+            .find_map(|p| Some((name.strip_suffix(p.suffix())?, p)))
+            .unwrap_or((name, Polish::Sweeps));
         let (rest, model) = match name.strip_suffix("-indep") {
             Some(r) => (r, PointModel::Independent),
             None => (name, PointModel::Existence),
@@ -112,8 +135,10 @@ impl BenchScene {
             spacing: Some(0.5),
             ..FitOptions::lattice()
         };
-        if !self.polish {
-            base.solver.max_polish_sweeps = 0;
+        match self.polish {
+            Polish::Sweeps => {}
+            Polish::StateOnly => base.solver.max_polish_sweeps = 0,
+            Polish::Off => base.solver.polish = false,
         }
         match self.kind {
             // `--types cylinder,elbow --size 1 --radius 0.1 --bend 0.5 --spacing 0.5`

@@ -41,6 +41,7 @@
 //! assert_eq!(solution.exists, [true, false]);
 //! ```
 
+mod candidate_rows;
 mod lbfgs;
 mod polish;
 mod polish_memo;
@@ -278,7 +279,12 @@ pub fn solve_from(
             }
         }
     }
-    let binary = evaluator.binary_value(&exists);
+    // Only a flip changes the scene: without one the thresholded loss stands.
+    let binary = if flips == 0 {
+        thresholded
+    } else {
+        evaluator.binary_value(&exists)
+    };
     Ok(Solution {
         probability: run.x,
         exists,
