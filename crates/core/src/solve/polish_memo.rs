@@ -11,6 +11,7 @@
 //! since, the trial would read exactly the same state and fail again: it is skipped. The
 //! polish's answer is unchanged; only repeated work goes.
 
+use super::candidate_rows::CandidateRows;
 use crate::chamfer::Coefficients;
 
 /// The trial moves of the polish (the memo keeps them apart: the same candidate fails
@@ -95,7 +96,7 @@ impl TrialMemo {
     pub(super) fn commit(
         &mut self,
         coeffs: &Coefficients,
-        rows: &[Vec<(u32, f64)>],
+        rows: &CandidateRows,
         flipped: impl Iterator<Item = usize>,
     ) {
         if self.stamped.is_empty() {

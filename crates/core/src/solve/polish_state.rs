@@ -7,6 +7,7 @@ use std::sync::OnceLock;
 
 use rayon::prelude::*;
 
+use super::candidate_rows::CandidateRows;
 use super::polish_memo::TrialMemo;
 use crate::chamfer::Coefficients;
 
@@ -50,11 +51,11 @@ pub(super) struct Mark {
 }
 
 /// What the polish reads and never changes, shared by the main state and the copies that
-/// try moves in parallel: each candidate's rows ([`transpose`]) and its neighbours, each
-/// list built the first time it is asked for.
+/// try moves in parallel: each candidate's rows ([`CandidateRows`]) and its neighbours,
+/// each list built the first time it is asked for.
 pub(super) struct PolishTables {
     /// Per candidate, its rows with its nearest distance there.
-    rows: Vec<Vec<(u32, f64)>>,
+    rows: CandidateRows,
     /// Per candidate, its neighbours once listed ([`PolishState::neighbours`]).
     neighbours: Vec<OnceLock<Box<[u32]>>>,
 }
@@ -62,14 +63,14 @@ pub(super) struct PolishTables {
 impl PolishTables {
     pub(super) fn new(coeffs: &Coefficients) -> Self {
         PolishTables {
-            rows: transpose(coeffs),
+            rows: CandidateRows::new(coeffs),
             neighbours: (0..coeffs.candidates()).map(|_| OnceLock::new()).collect(),
         }
     }
 
     /// Each candidate's rows (for the memo's tests).
     #[cfg(test)]
-    pub(super) fn rows_for_tests(&self) -> &[Vec<(u32, f64)>] {
+    pub(super) fn rows_for_tests(&self) -> &CandidateRows {
         &self.rows
     }
 }
@@ -79,8 +80,8 @@ impl PolishTables {
 #[derive(Clone)]
 pub(super) struct PolishState<'a> {
     pub(super) coeffs: &'a Coefficients,
-    /// Per candidate, its rows with its nearest distance there ([`transpose`]).
-    pub(super) rows: &'a [Vec<(u32, f64)>],
+    /// Per candidate, its rows with its nearest distance there.
+    pub(super) rows: &'a CandidateRows,
     /// Per candidate, its neighbours once listed.
     neighbour_lists: &'a [OnceLock<Box<[u32]>>],
     /// The current binary scene.
@@ -275,38 +276,6 @@ fn explain(coeffs: &Coefficients, j: usize, exists: &[bool]) -> Explanation {
     e
 }
 
-/// For each candidate, the rows (points) where it has entries, with its smallest distance there.
-///
-/// Linear in the entries: a per-candidate stamp of the last row seen replaces a search of
-/// the row so far (quadratic in the row length, 320 entries per row for the independent
-/// model), and a counting pass sizes every list exactly (no `Vec` growth slack).
-fn transpose(coeffs: &Coefficients) -> Vec<Vec<(u32, f64)>> {
-    let n = coeffs.candidates();
-    let mut last = vec![u32::MAX; n];
-    let mut counts = vec![0usize; n];
-    for j in 0..coeffs.points() {
-        for &c in &coeffs.cand[coeffs.row(j)] {
-            if last[c as usize] != j as u32 {
-                last[c as usize] = j as u32;
-                counts[c as usize] += 1;
-            }
-        }
-    }
-    let mut rows: Vec<Vec<(u32, f64)>> = counts.iter().map(|&k| Vec::with_capacity(k)).collect();
-    last.fill(u32::MAX);
-    for j in 0..coeffs.points() {
-        let r = coeffs.row(j);
-        for (&c, &d) in coeffs.cand[r.clone()].iter().zip(&coeffs.dist[r]) {
-            // Entries are sorted, so the first occurrence of a candidate is its nearest.
-            if last[c as usize] != j as u32 {
-                last[c as usize] = j as u32;
-                rows[c as usize].push((j as u32, d));
-            }
-        }
-    }
-    rows
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -315,54 +284,6 @@ mod tests {
     use nalgebra::Point3;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
-
-    /// The linear transpose equals the definition: for each candidate, every row where it
-    /// has an entry, once, with its first (smallest) distance there.
-    #[test]
-    fn transpose_keeps_each_candidates_first_entry_per_row() {
-        use crate::chamfer::PointModel;
-        let cloud: Vec<Point3<f64>> = (0..40)
-            .map(|k| {
-                let t = k as f64 * 0.37;
-                Point3::new(t.sin() * 2.0, (1.7 * t).cos(), 0.1 * t)
-            })
-            .collect();
-        let samples: Vec<Point3<f64>> = (0..60)
-            .map(|k| {
-                let t = k as f64 * 0.61;
-                Point3::new(t.cos() * 2.0, (0.9 * t).sin(), 0.05 * t)
-            })
-            .collect();
-        let owner: Vec<usize> = (0..60).map(|k| k % 7).collect();
-        let sets = SampleSets::new(&samples, &owner, 7).unwrap();
-        for (model, alpha) in [
-            (PointModel::Existence, None),
-            (PointModel::Independent, Some(4)),
-        ] {
-            let opts = ChamferOptions {
-                model,
-                alpha,
-                beta: Some(5),
-                cap: 1.0,
-                ..Default::default()
-            };
-            let c = Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap();
-            let mut expect: Vec<Vec<(u32, f64)>> = vec![Vec::new(); c.candidates()];
-            for j in 0..c.points() {
-                let r = c.row(j);
-                for k in r.clone() {
-                    let cand = c.cand[k];
-                    if !c.cand[r.start..k].contains(&cand) {
-                        expect[cand as usize].push((j as u32, c.dist[k]));
-                    }
-                }
-            }
-            assert_eq!(transpose(&c), expect, "{model:?}");
-            if model == PointModel::Independent {
-                assert!(c.entries() > expect.iter().map(Vec::len).sum::<usize>());
-            }
-        }
-    }
 
     /// The incremental explanations stay equal to a fresh scan of every row after long
     /// random flip sequences, including candidates farther than d_cap.
