@@ -15,7 +15,9 @@ use rayon::prelude::*;
 use crate::{Error, Primitive, Result};
 
 mod box_tree;
+mod kth_guess;
 pub(crate) use box_tree::{BoxTree, Hint};
+pub(crate) use kth_guess::kth_distance_guess;
 
 /// Squared distances to the nearest indexed point for runs of nearby queries: `hint`
 /// carries where the last query's search ended (used by [`BoxTree`], ignored by
