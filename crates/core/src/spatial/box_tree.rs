@@ -79,8 +79,22 @@ impl BoxTree {
     /// run of nearby queries each starts from the last one's answer; the distance does
     /// not depend on it.
     pub fn nearest(&self, q: &Point3<f64>, hint: &mut Hint) -> f64 {
+        self.search(q, hint).map_or(f64::INFINITY, |(_, d)| d)
+    }
+
+    /// The nearest point to `q` and its squared distance (`None` when there are no
+    /// points), with `hint` as in [`BoxTree::nearest`]. Among points at exactly the same
+    /// distance the one returned depends on the hint.
+    pub fn nearest_point(&self, q: &Point3<f64>, hint: &mut Hint) -> Option<(Point3<f64>, f64)> {
+        self.search(q, hint)
+            .map(|(at, d)| (Point3::from(self.points[at as usize]), d))
+    }
+
+    /// The position (in the reordered points) of the nearest point to `q` and its
+    /// squared distance; `None` when there are no points.
+    fn search(&self, q: &Point3<f64>, hint: &mut Hint) -> Option<(u32, f64)> {
         if self.points.is_empty() {
-            return f64::INFINITY;
+            return None;
         }
         let mut best_at = if (hint.0 as usize) < self.points.len() {
             hint.0
@@ -129,7 +143,7 @@ impl BoxTree {
             loop {
                 if depth == 0 {
                     *hint = Hint(best_at);
-                    return best;
+                    return Some((best_at, best));
                 }
                 depth -= 1;
                 let (next, d) = stack[depth];
@@ -273,6 +287,14 @@ mod tests {
                 .fold(f64::INFINITY, f64::min);
             let got = tree.nearest(&q, &mut hint);
             assert_eq!(got.to_bits(), brute.to_bits(), "query {k}");
+            // The point it names is one of the cloud's, at that distance.
+            let (p, d) = tree.nearest_point(&q, &mut hint).unwrap();
+            assert_eq!(d.to_bits(), brute.to_bits(), "query {k}");
+            assert!(pts.contains(&p), "query {k}");
+            assert_eq!(
+                squared_distance(&as_array(&q), &as_array(&p)).to_bits(),
+                d.to_bits()
+            );
             assert_eq!(
                 got.to_bits(),
                 kd.nearest(&q).unwrap().1.to_bits(),
@@ -331,7 +353,15 @@ mod tests {
             BoxTree::new(&[]).nearest(&Point3::origin(), &mut Hint::default()),
             f64::INFINITY
         );
+        assert_eq!(
+            BoxTree::new(&[]).nearest_point(&Point3::origin(), &mut Hint::default()),
+            None
+        );
         let one = BoxTree::new(&[Point3::new(1.0, 2.0, 2.0)]);
         assert_eq!(one.nearest(&Point3::origin(), &mut Hint(5)), 9.0);
+        assert_eq!(
+            one.nearest_point(&Point3::origin(), &mut Hint(5)),
+            Some((Point3::new(1.0, 2.0, 2.0), 9.0))
+        );
     }
 }
