@@ -137,6 +137,21 @@ impl ChamferOptions {
         check::non_negative("primitive_weight", self.primitive_weight)?;
         check::non_negative("point_weight", self.point_weight)
     }
+
+    /// These options for the loss of a scene in which every candidate exists (a binary
+    /// chamfer of chosen primitives): under [`PointModel::Existence`] a point then costs
+    /// its nearest candidate's distance, the first entry of its row whatever β, so β = 1
+    /// gives the same value bit for bit with one entry a point instead of β; the
+    /// independent model sums over its α × β entries and keeps them.
+    pub fn for_all_existing(&self) -> ChamferOptions {
+        match self.model {
+            PointModel::Existence => ChamferOptions {
+                beta: Some(1),
+                ..self.clone()
+            },
+            PointModel::Independent => self.clone(),
+        }
+    }
 }
 
 /// The two terms of the loss and their weighted total.

@@ -346,6 +346,41 @@ fn binary_value_is_the_binary_chamfer() {
 }
 
 #[test]
+fn all_existing_options_give_the_same_binary_chamfer_bit_for_bit() {
+    // Every candidate exists: under the existence model each point costs its nearest
+    // candidate whatever β, so β = 1 must give the same bits as β = 8 and β = ∞ (small
+    // cap: far points are capped, near ones not).
+    let pr = random_problem(21, 30, 400);
+    for cap in [0.01, 10.0] {
+        let full = ChamferOptions {
+            cap,
+            primitive_weight: 0.7,
+            ..Default::default()
+        };
+        let all = vec![true; pr.n];
+        let value = |o: &ChamferOptions| Evaluator::new(&coefficients(&pr, o)).binary_value(&all);
+        let reduced = full.for_all_existing();
+        assert_eq!(reduced.beta, Some(1));
+        let expect = value(&full);
+        assert_eq!(value(&reduced), expect, "cap {cap}");
+        let beta8 = ChamferOptions {
+            beta: Some(8),
+            ..full.clone()
+        };
+        assert_eq!(value(&beta8.for_all_existing()), value(&beta8), "cap {cap}");
+    }
+    // The independent model sums over its entries: its options are kept.
+    let independent = ChamferOptions {
+        model: PointModel::Independent,
+        alpha: Some(3),
+        beta: Some(5),
+        cap: 1.0,
+        ..Default::default()
+    };
+    assert_eq!(independent.for_all_existing(), independent);
+}
+
+#[test]
 fn evaluation_is_bit_identical_across_thread_counts() {
     let pr = random_problem(9, 40, 3000);
     let opts = ChamferOptions {

@@ -213,7 +213,8 @@ pub(super) fn binary_chamfer_indexed(
         alpha: None,
         beta: None,
         ..settings.chamfer.clone()
-    };
+    }
+    .for_all_existing();
     let coeffs = Coefficients::build_indexed(&cloud.points, index, &set, &options, &Silent)?;
     Ok(Evaluator::new(&coeffs).binary_value(&vec![true; set.len()]))
 }

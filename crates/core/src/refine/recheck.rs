@@ -22,7 +22,8 @@ pub(super) fn binary_loss(ctx: &RefineContext<'_>, prims: &[Primitive]) -> Resul
         return Ok(ctx.chamfer.point_weight * ctx.chamfer.cap * ctx.points.len() as f64);
     }
     let set = CandidateSet::from_primitives(prims, ctx.sample_spacing)?;
-    let coeffs = Coefficients::build_indexed(ctx.points, ctx.index, &set, ctx.chamfer, &Silent)?;
+    let options = ctx.chamfer.for_all_existing();
+    let coeffs = Coefficients::build_indexed(ctx.points, ctx.index, &set, &options, &Silent)?;
     Ok(Evaluator::new(&coeffs)
         .binary_value(&vec![true; set.len()])
         .total)
