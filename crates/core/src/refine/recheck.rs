@@ -16,7 +16,9 @@ use crate::{Primitive, Result};
 /// flips nothing): a bound on its time.
 const RECHECK_SWEEPS: usize = 20;
 
-/// The exact binary chamfer (weighted total) of `prims`, β as in the fit.
+/// The binary chamfer (weighted total) of `prims`, all existing, with the fit's options
+/// ([`crate::chamfer::ChamferOptions::for_all_existing`]: under the existence model one
+/// entry a point gives the value of any β).
 pub(super) fn binary_loss(ctx: &RefineContext<'_>, prims: &[Primitive]) -> Result<f64> {
     if prims.is_empty() {
         return Ok(ctx.chamfer.point_weight * ctx.chamfer.cap * ctx.points.len() as f64);

@@ -12,7 +12,8 @@ use rayon::prelude::*;
 
 use crate::chamfer::Coefficients;
 
-/// Rows per parallel task of the counting pass.
+/// Rows per parallel task of the counting pass (at least the candidate count, so that
+/// each task's counts, `n` of them, cost less than its rows).
 const COUNT_CHUNK: usize = 16_384;
 
 /// Candidate ranges filled in parallel per worker thread: each range scans every row's
@@ -68,12 +69,13 @@ impl CandidateRows {
 /// Per candidate, the number of rows where it has an entry.
 fn count_rows_per_candidate(coeffs: &Coefficients) -> Vec<usize> {
     let n = coeffs.candidates();
-    let rows: Vec<usize> = (0..coeffs.points()).step_by(COUNT_CHUNK).collect();
+    let chunk = COUNT_CHUNK.max(n);
+    let rows: Vec<usize> = (0..coeffs.points()).step_by(chunk).collect();
     rows.into_par_iter()
         .map(|first| {
             let mut counts = vec![0usize; n];
             let mut last = vec![u32::MAX; n];
-            for j in first..(first + COUNT_CHUNK).min(coeffs.points()) {
+            for j in first..(first + chunk).min(coeffs.points()) {
                 for &c in &coeffs.cand[coeffs.row(j)] {
                     if last[c as usize] != j as u32 {
                         last[c as usize] = j as u32;
