@@ -62,10 +62,7 @@ fn local_plane(
     k: usize,
     guess: Option<f64>,
 ) -> Option<LocalPlane> {
-    let hits = match guess {
-        Some(r2) => index.nearest_n_guessed(point, k.max(3), r2),
-        None => index.nearest_n(point, k.max(3)),
-    };
+    let hits = index.nearest_n_guessed(point, k.max(3), guess);
     if hits.len() < 3 {
         return None;
     }

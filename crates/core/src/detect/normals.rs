@@ -66,10 +66,7 @@ impl Neighbourhoods {
             .for_each_init(
                 Vec::new,
                 |local, (i, (row, normal, flatness, residual, radius))| {
-                    let hits = match guess {
-                        Some(r2) => index.nearest_n_guessed(&points[i], k, r2),
-                        None => index.nearest_n(&points[i], k),
-                    };
+                    let hits = index.nearest_n_guessed(&points[i], k, guess);
                     local.clear();
                     local.extend(hits.iter().map(|(j, _)| points[*j as usize]));
                     *radius = hits.last().map_or(0.0, |h| h.1.sqrt());

@@ -131,11 +131,20 @@ impl PointIndex {
     }
 
     /// The `k` nearest points, as [`Self::nearest_n`] returns them, searched first
-    /// within the squared distance `guess` (scene units²). The answer does not depend on
-    /// the guess; the search is fastest when the guess is a little above the `k`-th
-    /// squared distance, where a radius search gathers the candidates for less than a
-    /// k-nearest search (kiddo keeps its `k` best sorted as it goes).
-    pub fn nearest_n_guessed(&self, q: &Point3<f64>, k: usize, guess: f64) -> Vec<(u32, f64)> {
+    /// within the squared distance `guess` (scene units²; `None`: a plain
+    /// [`Self::nearest_n`]). The answer does not depend on the guess; the search is
+    /// fastest when the guess is a little above the `k`-th squared distance, where a
+    /// radius search gathers the candidates for less than a k-nearest search (kiddo keeps
+    /// its `k` best sorted as it goes).
+    pub fn nearest_n_guessed(
+        &self,
+        q: &Point3<f64>,
+        k: usize,
+        guess: Option<f64>,
+    ) -> Vec<(u32, f64)> {
+        let Some(guess) = guess else {
+            return self.nearest_n(q, k);
+        };
         let k = k.min(self.len);
         let mut found = self.within(q, guess);
         if k == 0 || found.len() < k {
@@ -450,7 +459,7 @@ mod tests {
                     let exact = idx.nearest_n(&q, k);
                     for guess in [0.0, 0.3, 1.0, 2.0, 5.0, 100.0] {
                         assert_eq!(
-                            idx.nearest_n_guessed(&q, k, guess),
+                            idx.nearest_n_guessed(&q, k, Some(guess)),
                             exact,
                             "{q} {k} {guess}"
                         );
