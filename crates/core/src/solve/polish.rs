@@ -15,7 +15,8 @@ use crate::chamfer::Coefficients;
 /// 2. **add and prune**: add a candidate, then remove every neighbour it made redundant
 ///    (a current owner of one of its rows whose removal no longer costs anything); keep
 ///    the whole move only if the total strictly decreases. This turns an overlapping
-///    tiling into a cleaner one, which single flips cannot;
+///    tiling into a cleaner one, which single flips cannot. A move whose addition costs
+///    more than the removals could ever save (their primitive terms) is not tried;
 /// 3. **replace chains**: remove a candidate, add the neighbour (a candidate with entries
 ///    in the same rows) that lowers the loss most, prune as in 2; if that alone does not
 ///    pay, continue with an existing candidate overlapping the new one (an ejection chain
@@ -351,27 +352,57 @@ impl PolishState<'_> {
         total
     }
 
-    /// Move 2 of [`polish`]; returns the number of flips kept (0 if reverted).
+    /// Whether an add-and-prune move whose addition changes the loss by `added` fails
+    /// whichever of `displaced` it removes: removing `k` changes the loss by
+    /// `w_point · (Σ runner-up − nearest over the rows k owns) − w_prim g_k`, at least
+    /// `−w_prim g_k` (the runner-up is never nearer). The bound is summed in the move's
+    /// order and each rounding is monotone, so the move's own total is never below it.
+    fn cannot_pay(&self, added: f64, displaced: &[u32]) -> bool {
+        let wp = self.coeffs.options.primitive_weight;
+        let lowest = displaced
+            .iter()
+            .fold(added, |total, &k| total + -(wp * self.coeffs.g[k as usize]));
+        lowest >= -self.tolerance
+    }
+
+    /// Move 2 of [`polish`]; returns the number of flips kept (0 if reverted). Skips
+    /// the move without trying it when [`PolishState::cannot_pay`].
     fn add_and_prune(&mut self, i: usize) -> usize {
-        // Owners of the rows that `i` would explain at least as well: the neighbours it
-        // may make redundant. Ties count, so one tile can replace two half-overlapping ones
-        // even when the points are already perfectly explained.
+        let Some(displaced) = self.displaced_by(i) else {
+            return 0;
+        };
+        let added = self.flip_delta(i);
+        if self.cannot_pay(added, &displaced) {
+            return 0;
+        }
+        self.try_add_and_prune(i, added, &displaced)
+    }
+
+    /// Owners of the rows that `i` would explain at least as well, ascending: the
+    /// neighbours it may make redundant (`None` if there are none). Ties count, so one tile
+    /// can replace two half-overlapping ones even when the points are already perfectly
+    /// explained.
+    fn displaced_by(&self, i: usize) -> Option<Vec<u32>> {
         let mut displaced: Vec<u32> = self.rows[i]
             .iter()
             .map(|&(j, d)| (self.point[j as usize], d))
             .filter(|(e, d)| *d <= e.cost && e.owner != u32::MAX)
             .map(|(e, _)| e.owner)
             .collect();
-        if displaced.is_empty() {
-            return 0;
-        }
         displaced.sort_unstable();
         displaced.dedup();
+        (!displaced.is_empty()).then_some(displaced)
+    }
+
+    /// Adds `i` (which changes the loss by `added`), removes each of `displaced` whose
+    /// removal then costs nothing, and keeps the whole only if the loss strictly falls;
+    /// returns the number of flips kept (0 if reverted).
+    fn try_add_and_prune(&mut self, i: usize, added: f64, displaced: &[u32]) -> usize {
         let mark = self.mark();
-        let mut gain = self.flip_delta(i);
+        let mut gain = added;
         self.flip(i);
         let mut removed = Vec::new();
-        for &k in &displaced {
+        for &k in displaced {
             let k = k as usize;
             let delta = self.flip_delta(k);
             if delta <= self.tolerance {
@@ -450,8 +481,20 @@ mod tests {
         (cloud, SampleSets::new(&samples, &owner, n).unwrap())
     }
 
-    /// The polish with moves 2 and 3 as they ran before the trial memo and the parallel
-    /// trials: every trial run on the one state, in order, and kept when it pays.
+    /// Move 2 tried whatever [`PolishState::cannot_pay`] says.
+    fn add_and_prune_unchecked(state: &mut PolishState, i: usize) -> usize {
+        match state.displaced_by(i) {
+            Some(displaced) => {
+                let added = state.flip_delta(i);
+                state.try_add_and_prune(i, added, &displaced)
+            }
+            None => 0,
+        }
+    }
+
+    /// The polish with moves 2 and 3 as they ran before the trial memo, the parallel
+    /// trials and the bound that skips add-and-prune moves: every trial run on the one
+    /// state, in order, and kept when it pays.
     fn polish_one_by_one(
         coeffs: &Coefficients,
         probability: &[f64],
@@ -469,7 +512,10 @@ mod tests {
                 for kind in [Trial::AddAndPrune, Trial::Replace] {
                     for &i in visit {
                         if kind.applies(state.exists[i]) {
-                            flips += state.trial(kind, i);
+                            flips += match kind {
+                                Trial::AddAndPrune => add_and_prune_unchecked(state, i),
+                                Trial::Replace => state.trial(kind, i),
+                            };
                             state.commit(memo);
                         }
                     }
@@ -479,9 +525,10 @@ mod tests {
         )
     }
 
-    /// Skipping the trials the memo knows to fail, and trying the others in parallel
-    /// batches, changes nothing: the same scene and flip count as trying every move one by
-    /// one, on 1 and on 3 threads, from random and from full starting scenes.
+    /// Skipping the trials the memo knows to fail or the bound proves to fail, and trying
+    /// the others in parallel batches, changes nothing: the same scene and flip count as
+    /// trying every move one by one, on 1 and on 3 threads, from random and from full
+    /// starting scenes.
     #[test]
     fn memo_and_parallel_trials_give_the_one_by_one_result() {
         let mut moved = 0;
@@ -516,5 +563,42 @@ mod tests {
             moved += expected_flips;
         }
         assert!(moved > 0, "the scenes exercise the moves");
+    }
+
+    /// Every add-and-prune move that the bound skips fails when tried, and the bound does
+    /// skip moves on these scenes (tiles overlapping fourfold, random scenes).
+    #[test]
+    fn skipped_add_and_prune_moves_fail_when_tried() {
+        let (mut skipped, mut tried) = (0, 0);
+        for seed in 0..12 {
+            let (cloud, sets) = tiles(seed);
+            let opts = ChamferOptions {
+                cap: 0.05,
+                beta: Some(12),
+                ..Default::default()
+            };
+            let c = Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap();
+            let n = c.candidates();
+            let mut rng = ChaCha8Rng::seed_from_u64(200 + seed);
+            let exists: Vec<bool> = (0..n).map(|_| rng.random_range(0.0..1.0) < 0.4).collect();
+            let tables = PolishTables::new(&c);
+            let mut state = PolishState::new(&c, &tables, &exists);
+            for i in (0..n).filter(|&i| !exists[i]) {
+                let Some(displaced) = state.displaced_by(i) else {
+                    continue;
+                };
+                let added = state.flip_delta(i);
+                let skip = state.cannot_pay(added, &displaced);
+                let mut copy = state.clone();
+                let kept = copy.try_add_and_prune(i, added, &displaced);
+                assert!(
+                    !(skip && kept > 0),
+                    "seed {seed}: move from {i} skipped but pays"
+                );
+                skipped += usize::from(skip);
+                tried += usize::from(!skip);
+            }
+        }
+        assert!(skipped > 0 && tried > 0, "skipped {skipped}, tried {tried}");
     }
 }
