@@ -361,7 +361,7 @@ impl PolishState<'_> {
         let wp = self.coeffs.options.primitive_weight;
         let lowest = displaced
             .iter()
-            .fold(added, |total, &k| total + -(wp * self.coeffs.g[k as usize]));
+            .fold(added, |total, &k| total - wp * self.coeffs.g[k as usize]);
         lowest >= -self.tolerance
     }
 
