@@ -1,7 +1,8 @@
 //! The point term transposed: for each candidate, the rows (points) where it has entries,
 //! with its smallest distance there — what the polish sums over when a candidate flips.
 //!
-//! Stored as one array ordered by candidate (16 bytes an entry) with `n + 1` offsets.
+//! Stored as one array ordered by candidate (16 bytes an entry, and a byte for the
+//! entry's place in its row) with `n + 1` offsets.
 //! Built in parallel and exactly: a counting pass over chunks of rows sizes every
 //! candidate's list, then the candidates are cut into ranges of about equal entry
 //! counts and each range fills its own part of the array, scanning the rows in order.
@@ -28,6 +29,8 @@ pub(super) struct CandidateRows {
     offsets: Vec<usize>,
     /// `(row, squared distance)`, grouped by candidate.
     entries: Vec<(u32, f64)>,
+    /// Each entry's place in its row (`u8::MAX` from 255 on), as `entries`.
+    places: Vec<u8>,
 }
 
 impl Index<usize> for CandidateRows {
@@ -38,6 +41,17 @@ impl Index<usize> for CandidateRows {
 }
 
 impl CandidateRows {
+    /// Candidate i's place in each of its rows (`u8::MAX` from 255 on), as `self[i]`.
+    pub(super) fn places(&self, i: usize) -> &[u8] {
+        &self.places[self.offsets[i]..self.offsets[i + 1]]
+    }
+
+    /// Entries in all lists: the coefficients' entry count exactly when no candidate has
+    /// two entries in one row.
+    pub(super) fn len(&self) -> usize {
+        self.entries.len()
+    }
+
     /// Transposes the entries of `coeffs`. A candidate with several entries in one row
     /// (the independent model) keeps the first, its nearest: rows are sorted by distance.
     pub(super) fn new(coeffs: &Coefficients) -> Self {
@@ -50,19 +64,27 @@ impl CandidateRows {
         }
         let total = offsets[n];
         let mut entries = vec![(0u32, 0.0f64); total];
+        let mut places = vec![0u8; total];
         let ranges = candidate_ranges(&offsets, rayon::current_num_threads() * RANGES_PER_THREAD);
         let mut parts = Vec::with_capacity(ranges.len());
-        let mut rest = &mut entries[..];
+        let (mut rest, mut rest_places) = (&mut entries[..], &mut places[..]);
         for r in &ranges {
-            let (part, tail) =
-                std::mem::take(&mut rest).split_at_mut(offsets[r.end] - offsets[r.start]);
-            parts.push((r.clone(), part));
-            rest = tail;
+            let len = offsets[r.end] - offsets[r.start];
+            let (part, tail) = std::mem::take(&mut rest).split_at_mut(len);
+            let (part_places, tail_places) = std::mem::take(&mut rest_places).split_at_mut(len);
+            parts.push((r.clone(), part, part_places));
+            (rest, rest_places) = (tail, tail_places);
         }
         parts
             .into_par_iter()
-            .for_each(|(range, part)| fill_range(coeffs, &offsets, range, part));
-        CandidateRows { offsets, entries }
+            .for_each(|(range, part, part_places)| {
+                fill_range(coeffs, &offsets, range, part, part_places)
+            });
+        CandidateRows {
+            offsets,
+            entries,
+            places,
+        }
     }
 }
 
@@ -118,12 +140,13 @@ fn candidate_ranges(offsets: &[usize], parts: usize) -> Vec<std::ops::Range<usiz
 }
 
 /// Writes the lists of the candidates in `range` into `part` (their slice of the
-/// entries), scanning every row in order.
+/// entries) and their places into `places`, scanning every row in order.
 fn fill_range(
     coeffs: &Coefficients,
     offsets: &[usize],
     range: std::ops::Range<usize>,
     part: &mut [(u32, f64)],
+    places: &mut [u8],
 ) {
     let base = offsets[range.start];
     let mut cursor: Vec<usize> = offsets[range.clone()].iter().map(|&o| o - base).collect();
@@ -131,7 +154,8 @@ fn fill_range(
     let (lo, hi) = (range.start as u32, range.end as u32);
     for j in 0..coeffs.points() {
         let r = coeffs.row(j);
-        for (&c, &d) in coeffs.cand[r.clone()].iter().zip(&coeffs.dist[r]) {
+        let row = coeffs.cand[r.clone()].iter().zip(&coeffs.dist[r]);
+        for (place, (&c, &d)) in row.enumerate() {
             if c < lo || c >= hi {
                 continue;
             }
@@ -140,6 +164,7 @@ fn fill_range(
             if last[k] != j as u32 {
                 last[k] = j as u32;
                 part[cursor[k]] = (j as u32, d);
+                places[cursor[k]] = place.min(u8::MAX as usize) as u8;
                 cursor[k] += 1;
             }
         }
@@ -211,6 +236,13 @@ mod tests {
                 let got: Vec<Vec<(u32, f64)>> =
                     (0..c.candidates()).map(|i| rows[i].to_vec()).collect();
                 assert_eq!(got, expect, "{model:?}, {threads} threads");
+                for i in 0..c.candidates() {
+                    for (&(j, _), &place) in rows[i].iter().zip(rows.places(i)) {
+                        let r = c.row(j as usize);
+                        let first = c.cand[r.clone()].iter().position(|&k| k as usize == i);
+                        assert_eq!(Some(place as usize), first, "{model:?}, candidate {i}");
+                    }
+                }
             }
             if model == PointModel::Independent {
                 assert!(c.entries() > expect.iter().map(Vec::len).sum::<usize>());

@@ -14,6 +14,9 @@ use crate::chamfer::Coefficients;
 /// Rows sampled per candidate when listing its neighbours.
 const NEIGHBOUR_ROWS: usize = 512;
 
+/// Longest row whose existing entries are kept as a bit mask ([`ExistingMasks`]).
+const MASK_BITS: usize = u64::BITS as usize;
+
 /// Changes of the binary loss within this fraction of the starting scene's loss
 /// (dimensionless) count as zero, so that rounding in the incremental sums neither makes
 /// nor blocks a move.
@@ -58,13 +61,24 @@ pub(super) struct PolishTables {
     rows: CandidateRows,
     /// Per candidate, its neighbours once listed ([`PolishState::neighbours`]).
     neighbours: Vec<OnceLock<Box<[u32]>>>,
+    /// Whether the states keep [`ExistingMasks`]: every row holds at most [`MASK_BITS`]
+    /// entries, of distinct candidates.
+    masks: bool,
 }
 
 impl PolishTables {
     pub(super) fn new(coeffs: &Coefficients) -> Self {
+        let rows = CandidateRows::new(coeffs);
+        // Distinct candidates in every row exactly when the transpose kept every entry.
+        let masks = coeffs.max_row <= MASK_BITS && rows.len() == coeffs.entries();
+        Self::with_masks(coeffs, rows, masks)
+    }
+
+    fn with_masks(coeffs: &Coefficients, rows: CandidateRows, masks: bool) -> Self {
         PolishTables {
-            rows: CandidateRows::new(coeffs),
+            rows,
             neighbours: (0..coeffs.candidates()).map(|_| OnceLock::new()).collect(),
+            masks,
         }
     }
 
@@ -88,6 +102,8 @@ pub(super) struct PolishState<'a> {
     pub(super) exists: Vec<bool>,
     /// Per point (row), its current explanation.
     pub(super) point: Vec<Explanation>,
+    /// Per row, which of its entries exist (empty when the tables keep no masks).
+    masks: ExistingMasks,
     /// Scratch of [`PolishState::best_replacement`]: per candidate, what it gains on the
     /// freed points (all zero between calls).
     pub(super) gain: Vec<f64>,
@@ -109,12 +125,18 @@ impl<'a> PolishState<'a> {
             .into_par_iter()
             .map(|j| explain(coeffs, j, exists))
             .collect();
+        let masks = if tables.masks {
+            ExistingMasks::new(coeffs, exists)
+        } else {
+            ExistingMasks(Vec::new())
+        };
         let mut s = PolishState {
             coeffs,
             rows: &tables.rows,
             neighbour_lists: &tables.neighbours,
             exists: exists.to_vec(),
             point,
+            masks,
             gain: vec![0.0; n],
             flipped: Vec::new(),
             undo: Vec::new(),
@@ -182,6 +204,7 @@ impl<'a> PolishState<'a> {
         self.flipped.push(i);
         let c = i as u32;
         self.undo.push(Undo::Flip(c));
+        self.masks.toggle(&self.rows[i], self.rows.places(i));
         for &(j, d) in &self.rows[i] {
             let e = &mut self.point[j as usize];
             let old = *e;
@@ -195,7 +218,10 @@ impl<'a> PolishState<'a> {
                     continue;
                 }
             } else if e.owner == c || e.second_owner == c {
-                *e = explain(self.coeffs, j as usize, &self.exists);
+                *e = match self.masks.row(j as usize) {
+                    Some(mask) => explain_masked(self.coeffs, j as usize, mask),
+                    None => explain(self.coeffs, j as usize, &self.exists),
+                };
             } else {
                 continue;
             }
@@ -216,7 +242,11 @@ impl<'a> PolishState<'a> {
         while self.undo.len() > mark.undo {
             match self.undo.pop() {
                 Some(Undo::Point(j, e)) => self.point[j as usize] = e,
-                Some(Undo::Flip(i)) => self.exists[i as usize] = !self.exists[i as usize],
+                Some(Undo::Flip(i)) => {
+                    let i = i as usize;
+                    self.exists[i] = !self.exists[i];
+                    self.masks.toggle(&self.rows[i], self.rows.places(i));
+                }
                 None => break,
             }
         }
@@ -249,6 +279,70 @@ impl<'a> PolishState<'a> {
             n.dedup();
             n.into_boxed_slice()
         })
+    }
+}
+
+/// Per row, bit `k` set when the candidate of the row's `k`-th entry exists: a row's
+/// explanation is then its first two set bits, with no scan of the row. Kept only when
+/// every row has at most [`MASK_BITS`] entries, of distinct candidates (empty otherwise).
+#[derive(Clone)]
+struct ExistingMasks(Vec<u64>);
+
+impl ExistingMasks {
+    fn new(coeffs: &Coefficients, exists: &[bool]) -> Self {
+        ExistingMasks(
+            (0..coeffs.points())
+                .into_par_iter()
+                .map(|j| {
+                    let row = &coeffs.cand[coeffs.row(j)];
+                    row.iter()
+                        .enumerate()
+                        .filter(|&(_, &c)| exists[c as usize])
+                        .fold(0u64, |mask, (k, _)| mask | 1 << k)
+                })
+                .collect(),
+        )
+    }
+
+    /// Row `j`'s mask, if masks are kept.
+    #[inline]
+    fn row(&self, j: usize) -> Option<u64> {
+        self.0.get(j).copied()
+    }
+
+    /// Flips the bits of one candidate's entries: `rows` and `places` as
+    /// [`CandidateRows`] lists them.
+    #[inline]
+    fn toggle(&mut self, rows: &[(u32, f64)], places: &[u8]) {
+        if self.0.is_empty() {
+            return;
+        }
+        for (&(j, _), &place) in rows.iter().zip(places) {
+            self.0[j as usize] ^= 1 << place;
+        }
+    }
+}
+
+/// [`explain`] from row `j`'s mask of existing entries (its candidates distinct): the
+/// first set bit is the owner, the next the runner-up.
+fn explain_masked(coeffs: &Coefficients, j: usize, mask: u64) -> Explanation {
+    let cap = coeffs.options.cap;
+    let start = coeffs.row(j).start;
+    let entry = |bits: u64| {
+        if bits == 0 {
+            (u32::MAX, cap)
+        } else {
+            let k = start + bits.trailing_zeros() as usize;
+            (coeffs.cand[k], coeffs.dist[k])
+        }
+    };
+    let (owner, cost) = entry(mask);
+    let (second_owner, second_cost) = entry(mask & mask.wrapping_sub(1));
+    Explanation {
+        owner,
+        cost,
+        second_owner,
+        second_cost,
     }
 }
 
@@ -286,7 +380,9 @@ mod tests {
     use rand_chacha::ChaCha8Rng;
 
     /// The incremental explanations stay equal to a fresh scan of every row after long
-    /// random flip sequences, including candidates farther than d_cap.
+    /// random flip sequences, including candidates farther than d_cap; with the rows'
+    /// masks of existing entries (what the tables choose here) and without, the states
+    /// stay identical, owners included.
     #[test]
     fn incremental_explanations_match_a_fresh_scan() {
         let mut rng = ChaCha8Rng::seed_from_u64(3);
@@ -303,15 +399,19 @@ mod tests {
             };
             let c = Coefficients::build(&cloud, &sets, &o, &Silent).unwrap();
             let mut ev = Evaluator::new(&c);
-            let tables = PolishTables::new(&c);
+            assert!(PolishTables::new(&c).masks, "beta {beta:?}");
+            let masked = PolishTables::with_masks(&c, CandidateRows::new(&c), true);
+            let scanned = PolishTables::with_masks(&c, CandidateRows::new(&c), false);
             let mut memo = TrialMemo::new(12);
-            let mut st = PolishState::new(&c, &tables, &[false; 12]);
+            let mut st = PolishState::new(&c, &masked, &[false; 12]);
+            let mut plain = PolishState::new(&c, &scanned, &[false; 12]);
             let mut rng = ChaCha8Rng::seed_from_u64(4);
             for _ in 0..300 {
                 let i = rng.random_range(0..12usize);
                 let before = ev.binary_value(&st.exists).total;
                 let predicted = st.flip_delta(i);
                 st.flip(i);
+                plain.flip(i);
                 let after = ev.binary_value(&st.exists).total;
                 assert!(
                     (after - before - predicted).abs() < 1e-9,
@@ -327,22 +427,51 @@ mod tests {
                         "row {j}"
                     );
                 }
+                assert_same(&st, &plain);
                 // A trial of a few flips rolled back leaves the state exactly as it was.
-                let (exists, point) = (st.exists.clone(), st.point.clone());
+                let before = st.clone();
                 st.commit(&mut memo);
                 let mark = st.mark();
                 for _ in 0..rng.random_range(1..5) {
                     st.flip(rng.random_range(0..12usize));
                 }
                 st.rollback(mark);
-                assert_eq!(st.exists, exists);
-                for (a, b) in st.point.iter().zip(&point) {
-                    assert_eq!(
-                        (a.owner, a.cost, a.second_owner, a.second_cost),
-                        (b.owner, b.cost, b.second_owner, b.second_cost)
-                    );
-                }
+                assert_same(&st, &before);
+                assert_eq!(st.masks.0, before.masks.0);
             }
         }
+    }
+
+    /// The same scene and explanations, owners included.
+    fn assert_same(a: &PolishState, b: &PolishState) {
+        assert_eq!(a.exists, b.exists);
+        for (x, y) in a.point.iter().zip(&b.point) {
+            assert_eq!(
+                (x.owner, x.cost, x.second_owner, x.second_cost),
+                (y.owner, y.cost, y.second_owner, y.second_cost)
+            );
+        }
+    }
+
+    /// Rows of repeated candidates (the independent model) keep no masks.
+    #[test]
+    fn repeated_candidates_keep_no_masks() {
+        let cloud: Vec<Point3<f64>> = (0..30)
+            .map(|k| Point3::new(k as f64 * 0.1, 0.0, 0.0))
+            .collect();
+        let samples: Vec<Point3<f64>> = (0..20)
+            .map(|k| Point3::new(k as f64 * 0.15, 0.05, 0.0))
+            .collect();
+        let owner: Vec<usize> = (0..20).map(|k| k % 4).collect();
+        let sets = SampleSets::new(&samples, &owner, 4).unwrap();
+        let o = ChamferOptions {
+            model: crate::chamfer::PointModel::Independent,
+            alpha: Some(3),
+            cap: 0.05,
+            ..Default::default()
+        };
+        let c = Coefficients::build(&cloud, &sets, &o, &Silent).unwrap();
+        assert!(c.max_row <= MASK_BITS);
+        assert!(!PolishTables::new(&c).masks);
     }
 }
