@@ -16,7 +16,8 @@ use crate::error::Remedy;
 ///   plus a row offset), held from the build to the end;
 /// * plus the larger of two transients: the build's per-chunk rows, copied into the
 ///   final arrays (`12·E`, plus 16 bytes per point saying where each row lies), and the
-///   polish's per-candidate transpose (16 bytes per distinct (point, candidate): `16·U`);
+///   polish's per-candidate transpose (16 bytes per distinct (point, candidate) and a
+///   byte for its place in the row: `17·U`);
 /// * plus [`BYTES_PER_POINT`] for the cloud, its KD-tree and per-point solver state.
 ///
 /// The benchmark table (`scripts/bench.sh`) prints this estimate next to the measured
@@ -35,7 +36,7 @@ pub fn estimate_bytes(
         };
     let per_entry = Coefficients::BYTES_PER_ENTRY as u64;
     let coefficients = entries * per_entry + 8;
-    let transient = (entries * per_entry + 16).max(16 * distinct);
+    let transient = (entries * per_entry + 16).max(POLISH_BYTES_PER_ROW_ENTRY * distinct);
     points as u64 * (coefficients + transient + BYTES_PER_POINT)
 }
 
@@ -67,8 +68,13 @@ pub fn check_memory(
     Ok(need)
 }
 
+/// Bytes of the polish's transpose per distinct (point, candidate): the row, the distance
+/// (16 with padding) and the entry's place in its row (1).
+const POLISH_BYTES_PER_ROW_ENTRY: u64 = 17;
+
 /// Bytes per input point besides the coefficients in [`estimate_bytes`]: the cloud
 /// (24), the KD-tree built over it (~28, for the settings), the primitive term's box tree
 /// (~35: a copy of the points and a 64-byte node per 6 points), the build's cell order
-/// (12), and the polish's per-point owner and cost (12), rounded up.
-pub const BYTES_PER_POINT: u64 = 128;
+/// (12), and the polish's per-point explanation (24: owner, runner-up and their costs)
+/// and mask of existing entries (8), rounded up.
+pub const BYTES_PER_POINT: u64 = 136;

@@ -136,11 +136,11 @@ fn memory_budget_covers_the_peak_and_names_the_settings() {
         beta: Some(32),
         ..Default::default()
     };
-    // 12 B per entry + 8 B offset, plus the polish transpose (16 B per candidate).
+    // 12 B per entry + 8 B offset, plus the polish transpose (17 B per candidate).
     let base = BYTES_PER_POINT;
     assert_eq!(
         estimate_bytes(1, 5000, 256, &existence),
-        32 * 12 + 8 + 32 * 16 + base
+        32 * 12 + 8 + 32 * 17 + base
     );
     let independent = ChamferOptions {
         model: PointModel::Independent,

@@ -29,7 +29,8 @@ pub(super) struct CandidateRows {
     offsets: Vec<usize>,
     /// `(row, squared distance)`, grouped by candidate.
     entries: Vec<(u32, f64)>,
-    /// Each entry's place in its row (`u8::MAX` from 255 on), as `entries`.
+    /// Each entry's place in its row (`u8::MAX` from 255 on), as `entries`; empty when
+    /// not asked for.
     places: Vec<u8>,
 }
 
@@ -41,9 +42,12 @@ impl Index<usize> for CandidateRows {
 }
 
 impl CandidateRows {
-    /// Candidate i's place in each of its rows (`u8::MAX` from 255 on), as `self[i]`.
+    /// Candidate i's place in each of its rows (`u8::MAX` from 255 on), as `self[i]`;
+    /// empty when the places were not asked for.
     pub(super) fn places(&self, i: usize) -> &[u8] {
-        &self.places[self.offsets[i]..self.offsets[i + 1]]
+        self.places
+            .get(self.offsets[i]..self.offsets[i + 1])
+            .unwrap_or_default()
     }
 
     /// Entries in all lists: the coefficients' entry count exactly when no candidate has
@@ -52,9 +56,10 @@ impl CandidateRows {
         self.entries.len()
     }
 
-    /// Transposes the entries of `coeffs`. A candidate with several entries in one row
-    /// (the independent model) keeps the first, its nearest: rows are sorted by distance.
-    pub(super) fn new(coeffs: &Coefficients) -> Self {
+    /// Transposes the entries of `coeffs`, with each entry's place in its row if
+    /// `with_places`. A candidate with several entries in one row (the independent model)
+    /// keeps the first, its nearest: rows are sorted by distance.
+    pub(super) fn new(coeffs: &Coefficients, with_places: bool) -> Self {
         let n = coeffs.candidates();
         let counts = count_rows_per_candidate(coeffs);
         let mut offsets = Vec::with_capacity(n + 1);
@@ -64,14 +69,16 @@ impl CandidateRows {
         }
         let total = offsets[n];
         let mut entries = vec![(0u32, 0.0f64); total];
-        let mut places = vec![0u8; total];
+        let mut places = vec![0u8; if with_places { total } else { 0 }];
         let ranges = candidate_ranges(&offsets, rayon::current_num_threads() * RANGES_PER_THREAD);
         let mut parts = Vec::with_capacity(ranges.len());
         let (mut rest, mut rest_places) = (&mut entries[..], &mut places[..]);
         for r in &ranges {
             let len = offsets[r.end] - offsets[r.start];
             let (part, tail) = std::mem::take(&mut rest).split_at_mut(len);
-            let (part_places, tail_places) = std::mem::take(&mut rest_places).split_at_mut(len);
+            let places_len = if with_places { len } else { 0 };
+            let (part_places, tail_places) =
+                std::mem::take(&mut rest_places).split_at_mut(places_len);
             parts.push((r.clone(), part, part_places));
             (rest, rest_places) = (tail, tail_places);
         }
@@ -164,7 +171,9 @@ fn fill_range(
             if last[k] != j as u32 {
                 last[k] = j as u32;
                 part[cursor[k]] = (j as u32, d);
-                places[cursor[k]] = place.min(u8::MAX as usize) as u8;
+                if let Some(p) = places.get_mut(cursor[k]) {
+                    *p = place.min(u8::MAX as usize) as u8;
+                }
                 cursor[k] += 1;
             }
         }
@@ -232,7 +241,11 @@ mod tests {
                     .num_threads(threads)
                     .build()
                     .unwrap();
-                let rows = pool.install(|| CandidateRows::new(&c));
+                let rows = pool.install(|| CandidateRows::new(&c, true));
+                let bare = pool.install(|| CandidateRows::new(&c, false));
+                assert!(
+                    (0..c.candidates()).all(|i| bare[i] == rows[i] && bare.places(i).is_empty())
+                );
                 let got: Vec<Vec<(u32, f64)>> =
                     (0..c.candidates()).map(|i| rows[i].to_vec()).collect();
                 assert_eq!(got, expect, "{model:?}, {threads} threads");

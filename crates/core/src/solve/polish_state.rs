@@ -17,6 +17,11 @@ const NEIGHBOUR_ROWS: usize = 512;
 /// Longest row whose existing entries are kept as a bit mask ([`ExistingMasks`]).
 const MASK_BITS: usize = u64::BITS as usize;
 
+/// Rows of at most this many entries keep no masks: scanning one reads no more than
+/// half a cache line of candidate ids (the default pipeline's rows hold 8), so a mask
+/// (8 bytes a row, and a byte an entry for the places) would buy nothing.
+const MASK_MIN_ROW: usize = 8;
+
 /// Changes of the binary loss within this fraction of the starting scene's loss
 /// (dimensionless) count as zero, so that rounding in the incremental sums neither makes
 /// nor blocks a move.
@@ -61,16 +66,18 @@ pub(super) struct PolishTables {
     rows: CandidateRows,
     /// Per candidate, its neighbours once listed ([`PolishState::neighbours`]).
     neighbours: Vec<OnceLock<Box<[u32]>>>,
-    /// Whether the states keep [`ExistingMasks`]: every row holds at most [`MASK_BITS`]
-    /// entries, of distinct candidates.
+    /// Whether the states keep [`ExistingMasks`]: the longest row holds more than
+    /// [`MASK_MIN_ROW`] and at most [`MASK_BITS`] entries, all rows of distinct
+    /// candidates.
     masks: bool,
 }
 
 impl PolishTables {
     pub(super) fn new(coeffs: &Coefficients) -> Self {
-        let rows = CandidateRows::new(coeffs);
+        let long_rows = (MASK_MIN_ROW + 1..=MASK_BITS).contains(&coeffs.max_row);
+        let rows = CandidateRows::new(coeffs, long_rows);
         // Distinct candidates in every row exactly when the transpose kept every entry.
-        let masks = coeffs.max_row <= MASK_BITS && rows.len() == coeffs.entries();
+        let masks = long_rows && rows.len() == coeffs.entries();
         Self::with_masks(coeffs, rows, masks)
     }
 
@@ -399,9 +406,13 @@ mod tests {
             };
             let c = Coefficients::build(&cloud, &sets, &o, &Silent).unwrap();
             let mut ev = Evaluator::new(&c);
-            assert!(PolishTables::new(&c).masks, "beta {beta:?}");
-            let masked = PolishTables::with_masks(&c, CandidateRows::new(&c), true);
-            let scanned = PolishTables::with_masks(&c, CandidateRows::new(&c), false);
+            assert_eq!(
+                PolishTables::new(&c).masks,
+                c.max_row > MASK_MIN_ROW,
+                "beta {beta:?}"
+            );
+            let masked = PolishTables::with_masks(&c, CandidateRows::new(&c, true), true);
+            let scanned = PolishTables::with_masks(&c, CandidateRows::new(&c, true), false);
             let mut memo = TrialMemo::new(12);
             let mut st = PolishState::new(&c, &masked, &[false; 12]);
             let mut plain = PolishState::new(&c, &scanned, &[false; 12]);
