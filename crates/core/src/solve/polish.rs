@@ -481,6 +481,17 @@ mod tests {
         (cloud, SampleSets::new(&samples, &owner, n).unwrap())
     }
 
+    /// The coefficients of [`tiles`] (`d_cap` 0.05, β 12).
+    fn tile_coefficients(seed: u64) -> Coefficients {
+        let (cloud, sets) = tiles(seed);
+        let opts = ChamferOptions {
+            cap: 0.05,
+            beta: Some(12),
+            ..Default::default()
+        };
+        Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap()
+    }
+
     /// Move 2 tried whatever [`PolishState::cannot_pay`] says.
     fn add_and_prune_unchecked(state: &mut PolishState, i: usize) -> usize {
         match state.displaced_by(i) {
@@ -533,13 +544,7 @@ mod tests {
     fn memo_and_parallel_trials_give_the_one_by_one_result() {
         let mut moved = 0;
         for seed in 0..12 {
-            let (cloud, sets) = tiles(seed);
-            let opts = ChamferOptions {
-                cap: 0.05,
-                beta: Some(12),
-                ..Default::default()
-            };
-            let c = Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap();
+            let c = tile_coefficients(seed);
             let n = c.candidates();
             let mut rng = ChaCha8Rng::seed_from_u64(100 + seed);
             let probability: Vec<f64> = (0..n).map(|_| rng.random_range(0.0..1.0)).collect();
@@ -571,13 +576,7 @@ mod tests {
     fn skipped_add_and_prune_moves_fail_when_tried() {
         let (mut skipped, mut tried) = (0, 0);
         for seed in 0..12 {
-            let (cloud, sets) = tiles(seed);
-            let opts = ChamferOptions {
-                cap: 0.05,
-                beta: Some(12),
-                ..Default::default()
-            };
-            let c = Coefficients::build(&cloud, &sets, &opts, &Silent).unwrap();
+            let c = tile_coefficients(seed);
             let n = c.candidates();
             let mut rng = ChaCha8Rng::seed_from_u64(200 + seed);
             let exists: Vec<bool> = (0..n).map(|_| rng.random_range(0.0..1.0) < 0.4).collect();
