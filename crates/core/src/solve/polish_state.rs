@@ -291,7 +291,8 @@ impl<'a> PolishState<'a> {
 
 /// Per row, bit `k` set when the candidate of the row's `k`-th entry exists: a row's
 /// explanation is then its first two set bits, with no scan of the row. Kept only when
-/// every row has at most [`MASK_BITS`] entries, of distinct candidates (empty otherwise).
+/// [`PolishTables`] says so (the longest row holds more than [`MASK_MIN_ROW`] and at most
+/// [`MASK_BITS`] entries, of distinct candidates); empty otherwise.
 #[derive(Clone)]
 struct ExistingMasks(Vec<u64>);
 
