@@ -792,6 +792,20 @@ fn quiet_verbose_and_piped_output() {
     assert!(all.contains("\"spacing\":0.5"), "{all}");
     assert!(all.contains("candidates"), "{all}");
     assert!(!all.contains('\x1b'), "{all}");
+    // The summary names the lattice's candidates and the fewer the solver saw.
+    let counts: Vec<usize> = stdout
+        .lines()
+        .find_map(|l| l.split(" from ").nth(1))
+        .map(|rest| {
+            rest.split(|c: char| !c.is_ascii_digit())
+                .filter_map(|t| t.parse().ok())
+                .collect()
+        })
+        .unwrap_or_default();
+    assert!(
+        counts.len() == 2 && counts[0] > counts[1] && stdout.contains("not dominated)"),
+        "{stdout}"
+    );
 
     // Every option, defaults included, lands in the result's settings.
     let settings = &read_json(&dir.join("r.json"))["settings"];

@@ -352,23 +352,7 @@ fn print_summary(
     m: &primfit_core::metrics::Metrics,
     verbose: bool,
 ) {
-    let mut counts = std::collections::BTreeMap::new();
-    for p in &r.primitives {
-        *counts.entry(p.shape.kind().name()).or_insert(0usize) += 1;
-    }
-    let kinds: Vec<String> = counts.iter().map(|(k, n)| format!("{n} {k}")).collect();
-    println!(
-        "{}: {} points → {} primitives ({}) from {} candidates",
-        args.scene.display(),
-        r.stats.points,
-        r.primitives.len(),
-        if kinds.is_empty() {
-            "none".into()
-        } else {
-            kinds.join(", ")
-        },
-        r.stats.candidates
-    );
+    println!("{}", summary_line(args, r));
     println!(
         "point→model mean {:.4}, p95 {:.4}, max {:.4}; model→point mean {:.4}; coverage@{:.4} {:.1} %",
         m.point_to_model_mean,
@@ -378,29 +362,65 @@ fn print_summary(
         m.coverage_tau,
         100.0 * m.coverage
     );
-    if verbose
-        && matches!(
-            r.settings.method,
-            primfit_core::fit::MethodSettings::Mcmc(_)
+    if verbose {
+        for line in verbose_lines(r) {
+            println!("{line}");
+        }
+    }
+    for (flag, path) in [("result", &args.output), ("mesh", &args.mesh)] {
+        if let Some(p) = path {
+            println!("wrote {flag} {}", p.display());
+        }
+    }
+}
+
+/// `SCENE: J points → K primitives (by type) from N candidates`, with the candidates the
+/// solver saw when dominance set some aside.
+fn summary_line(args: &FitArgs, r: &primfit_core::fit::FitResult) -> String {
+    let mut counts = std::collections::BTreeMap::new();
+    for p in &r.primitives {
+        *counts.entry(p.shape.kind().name()).or_insert(0usize) += 1;
+    }
+    let kinds: Vec<String> = counts.iter().map(|(k, n)| format!("{n} {k}")).collect();
+    let s = &r.stats;
+    let candidates = if s.lattice_candidates > s.candidates {
+        format!(
+            "{} candidates ({} not dominated)",
+            s.lattice_candidates, s.candidates
         )
-    {
-        let s = &r.stats;
-        println!(
-            "{} crossings × {} B = {:.1} MiB; lattice {:.2} s, ray table {:.2} s, sampling {:.2} s ({} proposals, {} accepted)",
+    } else {
+        format!("{} candidates", s.candidates)
+    };
+    format!(
+        "{}: {} points → {} primitives ({}) from {candidates}",
+        args.scene.display(),
+        s.points,
+        r.primitives.len(),
+        if kinds.is_empty() {
+            "none".into()
+        } else {
+            kinds.join(", ")
+        },
+    )
+}
+
+/// The `--verbose` details of the fit's method: sizes, times and settings.
+fn verbose_lines(r: &primfit_core::fit::FitResult) -> Vec<String> {
+    use primfit_core::fit::MethodSettings;
+    let (s, st) = (&r.stats, &r.settings);
+    let mib = s.coefficient_bytes as f64 / (1 << 20) as f64;
+    match &st.method {
+        MethodSettings::Mcmc(_) => vec![format!(
+            "{} crossings × {} B = {mib:.1} MiB; lattice {:.2} s, ray table {:.2} s, sampling {:.2} s ({} proposals, {} accepted)",
             s.entries,
             s.bytes_per_entry,
-            s.coefficient_bytes as f64 / (1 << 20) as f64,
             s.lattice_seconds,
             s.coefficient_seconds,
             s.solve_seconds,
             r.solution.iterations,
             r.solution.flips
-        );
-    } else if let (true, primfit_core::fit::MethodSettings::Compact(c)) =
-        (verbose, &r.settings.method)
-    {
-        let st = &r.settings;
-        println!(
+        )],
+        MethodSettings::Compact(c) => vec![format!(
             "compact model: {} segments → {} candidates; noise σ {:.5}, point spacing {:.5}, cap {:.5}, sample spacing {:.5}; existence: {} iterations, {} evaluations, {} polish flips",
             c.segments,
             c.proposed,
@@ -411,46 +431,41 @@ fn print_summary(
             r.solution.iterations,
             r.solution.evaluations,
             r.solution.flips
-        );
-    } else if verbose {
-        let s = &r.stats;
-        println!(
-            "{} entries × {} B = {:.1} MiB; lattice {:.2} s, coefficients {:.2} s, solve {:.2} s ({} iterations, {} evaluations, {} polish flips), refine {:.2} s ({} dropped)",
-            s.entries,
-            s.bytes_per_entry,
-            s.coefficient_bytes as f64 / (1 << 20) as f64,
-            s.lattice_seconds,
-            s.coefficient_seconds,
-            s.solve_seconds,
-            r.solution.iterations,
-            r.solution.evaluations,
-            r.solution.flips,
-            s.refine_seconds,
-            s.refine_dropped
-        );
-        let st = &r.settings;
-        let q = st.frame.quaternion();
-        println!(
-            "frame {} [w x y z] = [{:.4} {:.4} {:.4} {:.4}] (support {}), origin [{:.4} {:.4} {:.4}], noise σ {:.4}, size {}, spacing {}, cap {:.4}",
-            st.frame_source,
-            q.w,
-            q.i,
-            q.j,
-            q.k,
-            st.frame_support
-                .map_or("n/a".to_string(), |s| format!("{:.0} %", 100.0 * s)),
-            st.origin.x,
-            st.origin.y,
-            st.origin.z,
-            st.noise,
-            st.size,
-            st.spacing,
-            st.cap
-        );
-    }
-    for (flag, path) in [("result", &args.output), ("mesh", &args.mesh)] {
-        if let Some(p) = path {
-            println!("wrote {flag} {}", p.display());
+        )],
+        MethodSettings::Chamfer => {
+            let q = st.frame.quaternion();
+            vec![
+                format!(
+                    "{} entries × {} B = {mib:.1} MiB; lattice {:.2} s, coefficients {:.2} s, solve {:.2} s ({} iterations, {} evaluations, {} polish flips), refine {:.2} s ({} dropped)",
+                    s.entries,
+                    s.bytes_per_entry,
+                    s.lattice_seconds,
+                    s.coefficient_seconds,
+                    s.solve_seconds,
+                    r.solution.iterations,
+                    r.solution.evaluations,
+                    r.solution.flips,
+                    s.refine_seconds,
+                    s.refine_dropped
+                ),
+                format!(
+                    "frame {} [w x y z] = [{:.4} {:.4} {:.4} {:.4}] (support {}), origin [{:.4} {:.4} {:.4}], noise σ {:.4}, size {}, spacing {}, cap {:.4}",
+                    st.frame_source,
+                    q.w,
+                    q.i,
+                    q.j,
+                    q.k,
+                    st.frame_support
+                        .map_or("n/a".to_string(), |s| format!("{:.0} %", 100.0 * s)),
+                    st.origin.x,
+                    st.origin.y,
+                    st.origin.z,
+                    st.noise,
+                    st.size,
+                    st.spacing,
+                    st.cap
+                ),
+            ]
         }
     }
 }
