@@ -120,18 +120,7 @@ pub fn compact_model(
         .unwrap_or((CAP_SIGMAS * noise).max(CAP_SPACINGS * spacing));
     let sample_spacing = options.sample_spacing.unwrap_or(SAMPLE_SPACINGS * spacing);
     let candidates: Vec<Primitive> = proposals.iter().map(|p| p.primitive.clone()).collect();
-    let planned: f64 = (candidates.iter())
-        .map(|c| planned_samples(c, sample_spacing, PRIMITIVE_TERM_SAMPLES))
-        .sum();
-    if planned > MAX_CANDIDATE_SAMPLES {
-        return Err(Error::OverLimit {
-            what: format!("the candidates' samples at spacing {sample_spacing}"),
-            need: planned,
-            limit: MAX_CANDIDATE_SAMPLES,
-            unit: Unit::Count("samples"),
-            remedies: vec![Remedy::Raise("sample_spacing"), Remedy::Subsample],
-        });
-    }
+    check_sample_budget(&candidates, sample_spacing)?;
     let mut cost: Vec<f64> = candidates
         .iter()
         .map(|p| primitive_cost(p, noise, points.len()))
@@ -145,19 +134,7 @@ pub fn compact_model(
         }
         clock.lap("free_space");
     }
-    let existence_options = ExistenceOptions {
-        sample_spacing,
-        chamfer: ChamferOptions {
-            cap: cap * cap,
-            surface_distance: true,
-            beta: Some(EXISTENCE_BETA),
-            primitive_weight: options.weights.map_or(1.0, |w| w[0]),
-            point_weight: options.weights.map_or(1.0, |w| w[1]),
-            ..Default::default()
-        },
-        solver: options.solver.clone(),
-    };
-    existence_options.chamfer.validate()?;
+    let existence_options = existence_options(options, cap, sample_spacing)?;
     let samples: Vec<CandidateSamples> = proposals
         .par_iter()
         .map(|p| {
@@ -212,4 +189,45 @@ pub fn compact_model(
         existence_seconds,
         times: clock.times,
     })
+}
+
+/// Refuses candidates whose samples at `sample_spacing` would exceed
+/// [`MAX_CANDIDATE_SAMPLES`], naming the remedies.
+fn check_sample_budget(candidates: &[Primitive], sample_spacing: f64) -> Result<()> {
+    let planned: f64 = (candidates.iter())
+        .map(|c| planned_samples(c, sample_spacing, PRIMITIVE_TERM_SAMPLES))
+        .sum();
+    if planned > MAX_CANDIDATE_SAMPLES {
+        return Err(Error::OverLimit {
+            what: format!("the candidates' samples at spacing {sample_spacing}"),
+            need: planned,
+            limit: MAX_CANDIDATE_SAMPLES,
+            unit: Unit::Count("samples"),
+            remedies: vec![Remedy::Raise("sample_spacing"), Remedy::Subsample],
+        });
+    }
+    Ok(())
+}
+
+/// The existence decision's options: the chamfer with cap `cap` (scene units) on surface
+/// distances and β = [`EXISTENCE_BETA`], the weights and solver of `options`; checked.
+fn existence_options(
+    options: &CompactOptions,
+    cap: f64,
+    sample_spacing: f64,
+) -> Result<ExistenceOptions> {
+    let existence = ExistenceOptions {
+        sample_spacing,
+        chamfer: ChamferOptions {
+            cap: cap * cap,
+            surface_distance: true,
+            beta: Some(EXISTENCE_BETA),
+            primitive_weight: options.weights.map_or(1.0, |w| w[0]),
+            point_weight: options.weights.map_or(1.0, |w| w[1]),
+            ..Default::default()
+        },
+        solver: options.solver.clone(),
+    };
+    existence.chamfer.validate()?;
+    Ok(existence)
 }

@@ -272,28 +272,13 @@ pub fn detect_timed(
     let nb = Neighbourhoods::new(&samples, sample_index, k);
     clock.lap("normals");
     let radius = median_radius(&nb);
-    let pitch = voxel.unwrap_or(spacing);
-    let (fine, coarse) = match options.noise {
-        Some(s) => (NoiseMap::uniform(s), None),
-        None => (
-            NoiseMap::new(&samples, &nb, spacing, radius),
-            sees_finer_than_coarse(voxel, spacing)
-                .then(|| coarse_noise(&samples, pitch, k, spacing)),
-        ),
-    };
-    let sigma: Vec<f64> = samples.iter().map(|p| fine.at(p)).collect();
-    let model_sigma: Vec<f64> = samples
-        .iter()
-        .zip(&sigma)
-        .map(|(p, s)| coarse.as_ref().map_or(*s, |c| c.at(p).max(*s)))
-        .collect();
-    let angles: Vec<f64> = match options.angle {
-        Some(a) => vec![a; samples.len()],
-        None => sigma
-            .iter()
-            .map(|s| growing_angle(*s, radius, nb.k))
-            .collect(),
-    };
+    let SampleNoise {
+        fine,
+        coarse,
+        sigma,
+        model_sigma,
+        angles,
+    } = SampleNoise::new(options, &samples, &nb, k, spacing, radius, voxel);
     let tolerance = options.tolerance.unwrap_or(DEFAULT_TOLERANCE);
     clock.lap("noise");
     let grow = GrowParams {
@@ -359,6 +344,65 @@ pub fn detect_timed(
     detection.voxel = voxel;
     detection.samples = samples.len();
     Ok((detection, clock.times))
+}
+
+/// The noise levels of the samples and the growing angles they set.
+struct SampleNoise {
+    /// σ at the fine scale (the neighbourhoods of the normals).
+    fine: NoiseMap,
+    /// σ at the coarse scale, when the samples see finer than it.
+    coarse: Option<NoiseMap>,
+    /// Each sample's fine σ (scene units).
+    sigma: Vec<f64>,
+    /// Each sample's σ that models are judged against: the larger of both scales.
+    model_sigma: Vec<f64>,
+    /// Each sample's growing angle (radians).
+    angles: Vec<f64>,
+}
+
+impl SampleNoise {
+    /// Measured from `nb` (or as `options` set them): `k` is the neighbours asked for,
+    /// `spacing` the cloud's point spacing, `radius` the neighbourhoods' median radius,
+    /// `voxel` the subsampling edge.
+    fn new(
+        options: &DetectOptions,
+        samples: &[Point3<f64>],
+        nb: &Neighbourhoods,
+        k: usize,
+        spacing: f64,
+        radius: f64,
+        voxel: Option<f64>,
+    ) -> Self {
+        let pitch = voxel.unwrap_or(spacing);
+        let (fine, coarse) = match options.noise {
+            Some(s) => (NoiseMap::uniform(s), None),
+            None => (
+                NoiseMap::new(samples, nb, spacing, radius),
+                sees_finer_than_coarse(voxel, spacing)
+                    .then(|| coarse_noise(samples, pitch, k, spacing)),
+            ),
+        };
+        let sigma: Vec<f64> = samples.iter().map(|p| fine.at(p)).collect();
+        let model_sigma: Vec<f64> = samples
+            .iter()
+            .zip(&sigma)
+            .map(|(p, s)| coarse.as_ref().map_or(*s, |c| c.at(p).max(*s)))
+            .collect();
+        let angles: Vec<f64> = match options.angle {
+            Some(a) => vec![a; samples.len()],
+            None => sigma
+                .iter()
+                .map(|s| growing_angle(*s, radius, nb.k))
+                .collect(),
+        };
+        SampleNoise {
+            fine,
+            coarse,
+            sigma,
+            model_sigma,
+            angles,
+        }
+    }
 }
 
 /// Checks that `points` is not empty, is finite and is what `index` indexes.

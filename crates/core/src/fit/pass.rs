@@ -100,6 +100,26 @@ pub(super) fn charge_free_space(
     Ok(free)
 }
 
+/// The lattice's candidates within reach of the data (an error if none): a candidate
+/// with no point within the cap of its surface can only raise the loss (see
+/// `CandidateSet::near_data`), so dropping it is exact in effect.
+fn near_candidates(cloud: &PointCloud, settings: &Settings) -> Result<CandidateSet> {
+    let mut candidates = CandidateSet::build(&settings.lattice(), cloud)?;
+    // Before the filter below, whose own cost is every candidate's samples.
+    check_work(cloud.len(), &candidates, settings)?;
+    if settings.cap > 0.0 {
+        let keep = candidates.near_data(&cloud.points, settings.cap + settings.sample_spacing);
+        candidates.retain(&keep);
+    }
+    if candidates.is_empty() {
+        return Err(Error::Missing {
+            what: "a lattice candidate near the cloud".into(),
+            needed_by: "the existence solve",
+        });
+    }
+    Ok(candidates)
+}
+
 /// One lattice fit under `settings`, refined when `settings.refine` is set.
 pub(super) fn fit_pass(
     cloud: &PointCloud,
@@ -108,22 +128,8 @@ pub(super) fn fit_pass(
     progress: &dyn Progress,
 ) -> Result<FitResult> {
     let t0 = Instant::now();
-    let mut candidates = CandidateSet::build(&settings.lattice(), cloud)?;
-    // Before the filter below, whose own cost is every candidate's samples.
-    check_work(cloud.len(), &candidates, &settings)?;
-    // Exact in effect: a candidate with no point within the cap of its surface can only
-    // raise the loss (see `CandidateSet::near_data`).
-    if settings.cap > 0.0 {
-        let keep = candidates.near_data(&cloud.points, settings.cap + settings.sample_spacing);
-        candidates.retain(&keep);
-    }
+    let mut candidates = near_candidates(cloud, &settings)?;
     let lattice_seconds = t0.elapsed().as_secs_f64();
-    if candidates.is_empty() {
-        return Err(Error::Missing {
-            what: "a lattice candidate near the cloud".into(),
-            needed_by: "the existence solve",
-        });
-    }
     let (need, max_samples) = check_memory(cloud.len(), &candidates, &settings)?;
     progress.checkpoint()?;
     progress.message(&format!(
