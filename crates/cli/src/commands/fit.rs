@@ -408,15 +408,10 @@ fn summary_line(args: &FitArgs, r: &primfit_core::fit::FitResult) -> String {
 fn verbose_lines(r: &primfit_core::fit::FitResult) -> Vec<String> {
     use primfit_core::fit::MethodSettings;
     let (s, st) = (&r.stats, &r.settings);
-    let mib = s.coefficient_bytes as f64 / (1 << 20) as f64;
     match &st.method {
         MethodSettings::Mcmc(_) => vec![format!(
-            "{} crossings × {} B = {mib:.1} MiB; lattice {:.2} s, ray table {:.2} s, sampling {:.2} s ({} proposals, {} accepted)",
-            s.entries,
-            s.bytes_per_entry,
-            s.lattice_seconds,
-            s.coefficient_seconds,
-            s.solve_seconds,
+            "{} ({} proposals, {} accepted)",
+            sizes_and_times(s, "crossings", "ray table", "sampling"),
             r.solution.iterations,
             r.solution.flips
         )],
@@ -436,12 +431,8 @@ fn verbose_lines(r: &primfit_core::fit::FitResult) -> Vec<String> {
             let q = st.frame.quaternion();
             vec![
                 format!(
-                    "{} entries × {} B = {mib:.1} MiB; lattice {:.2} s, coefficients {:.2} s, solve {:.2} s ({} iterations, {} evaluations, {} polish flips), refine {:.2} s ({} dropped)",
-                    s.entries,
-                    s.bytes_per_entry,
-                    s.lattice_seconds,
-                    s.coefficient_seconds,
-                    s.solve_seconds,
+                    "{} ({} iterations, {} evaluations, {} polish flips), refine {:.2} s ({} dropped)",
+                    sizes_and_times(s, "entries", "coefficients", "solve"),
                     r.solution.iterations,
                     r.solution.evaluations,
                     r.solution.flips,
@@ -468,4 +459,23 @@ fn verbose_lines(r: &primfit_core::fit::FitResult) -> Vec<String> {
             ]
         }
     }
+}
+
+/// `N <what> × B B = M MiB; lattice … s, <coefficients> … s, <solve> … s`: the sizes
+/// and stage times a lattice method reports.
+fn sizes_and_times(
+    s: &primfit_core::fit::FitStats,
+    what: &str,
+    coefficients: &str,
+    solve: &str,
+) -> String {
+    format!(
+        "{} {what} × {} B = {:.1} MiB; lattice {:.2} s, {coefficients} {:.2} s, {solve} {:.2} s",
+        s.entries,
+        s.bytes_per_entry,
+        s.coefficient_bytes as f64 / (1 << 20) as f64,
+        s.lattice_seconds,
+        s.coefficient_seconds,
+        s.solve_seconds
+    )
 }
