@@ -50,6 +50,11 @@ impl CandidateRows {
             .unwrap_or_default()
     }
 
+    /// Frees the places (only the polish's masks read them).
+    pub(super) fn drop_places(&mut self) {
+        self.places = Vec::new();
+    }
+
     /// Entries in all lists: the coefficients' entry count exactly when no candidate has
     /// two entries in one row.
     pub(super) fn len(&self) -> usize {

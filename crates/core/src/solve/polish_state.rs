@@ -75,9 +75,12 @@ pub(super) struct PolishTables {
 impl PolishTables {
     pub(super) fn new(coeffs: &Coefficients) -> Self {
         let long_rows = (MASK_MIN_ROW + 1..=MASK_BITS).contains(&coeffs.max_row);
-        let rows = CandidateRows::new(coeffs, long_rows);
+        let mut rows = CandidateRows::new(coeffs, long_rows);
         // Distinct candidates in every row exactly when the transpose kept every entry.
         let masks = long_rows && rows.len() == coeffs.entries();
+        if !masks {
+            rows.drop_places();
+        }
         Self::with_masks(coeffs, rows, masks)
     }
 
@@ -489,6 +492,9 @@ mod tests {
             "{}",
             c.max_row
         );
-        assert!(!PolishTables::new(&c).masks);
+        let tables = PolishTables::new(&c);
+        assert!(!tables.masks);
+        // Without masks nothing reads the places: they are not kept.
+        assert!((0..4).all(|i| tables.rows.places(i).is_empty()));
     }
 }
