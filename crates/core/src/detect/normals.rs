@@ -12,7 +12,7 @@
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::spatial::{PointIndex, kth_distance_guess};
+use crate::spatial::{NeighbourSearch, PointIndex, kth_distance_guess};
 use crate::surface::pca_plane;
 
 /// The flatness given to a point whose neighbourhood is degenerate (all neighbours
@@ -54,6 +54,7 @@ impl Neighbourhoods {
             radius: vec![0.0; n],
         };
         let guess = kth_distance_guess(points, index, k);
+        let search = NeighbourSearch::new(points, index, k, guess);
         (
             out.neighbours.par_chunks_mut(k),
             &mut out.normals,
@@ -64,16 +65,16 @@ impl Neighbourhoods {
             .into_par_iter()
             .enumerate()
             .for_each_init(
-                Vec::new,
-                |local, (i, (row, normal, flatness, residual, radius))| {
-                    let hits = index.nearest_n_guessed(&points[i], k, guess);
+                || (Vec::new(), Vec::new()),
+                |(local, scratch), (i, (row, normal, flatness, residual, radius))| {
+                    let hits = search.nearest(i, scratch);
                     local.clear();
                     local.extend(hits.iter().map(|(j, _)| points[*j as usize]));
                     *radius = hits.last().map_or(0.0, |h| h.1.sqrt());
                     if let Some((nrm, f, r)) = pca_plane(local) {
                         (*normal, *flatness, *residual) = (nrm, f, r);
                     }
-                    fill_row(row, &hits, i as u32);
+                    fill_row(row, hits, i as u32);
                 },
             );
         out

@@ -10,9 +10,10 @@ use super::{PointIndex, strided_quantiles};
 
 /// Points probed for the typical `k`-th neighbour distance of a cloud; a cloud of fewer
 /// than [`KTH_DISTANCE_PROBE_STRIDE`] times as many points is searched without a guess
-/// (on leftover pieces of a few hundred points the guess saved nothing, measured).
+/// (on leftover pieces of a few hundred points the guess saved nothing, measured; from
+/// about a thousand points the neighbour grid it sizes more than repays the probes).
 const KTH_DISTANCE_PROBES: usize = 256;
-const KTH_DISTANCE_PROBE_STRIDE: usize = 16;
+const KTH_DISTANCE_PROBE_STRIDE: usize = 4;
 
 /// The quantile of the probed `k`-th neighbour distances, and the factor above it, that
 /// each point's neighbour search starts from as a radius search (results are exact

@@ -16,8 +16,10 @@ use crate::{Error, Primitive, Result};
 
 mod box_tree;
 mod kth_guess;
+mod neighbour_grid;
 pub(crate) use box_tree::{BoxTree, Hint};
 pub(crate) use kth_guess::kth_distance_guess;
+pub(crate) use neighbour_grid::NeighbourSearch;
 
 /// Squared distances to the nearest indexed point for runs of nearby queries: `hint`
 /// carries where the last query's search ended (used by [`BoxTree`], ignored by
