@@ -138,7 +138,8 @@ pub fn noise_level(planes: &[LocalPlane]) -> Option<f64> {
         return None;
     }
     let mut by_flatness: Vec<&LocalPlane> = planes.iter().collect();
-    by_flatness.sort_by(|a, b| a.flatness.total_cmp(&b.flatness));
+    // Stable: planes of equal flatness keep their order, on any thread count.
+    by_flatness.par_sort_by(|a, b| a.flatness.total_cmp(&b.flatness));
     let flat = &by_flatness[..by_flatness.len().div_ceil(2)];
     let mut r: Vec<f64> = flat.iter().map(|p| p.residual).collect();
     let mid = r.len() / 2;

@@ -52,6 +52,7 @@ mod split;
 mod tests;
 
 use nalgebra::Point3;
+use rayon::prelude::*;
 
 pub use model::SurfaceModel;
 
@@ -382,16 +383,16 @@ impl SampleNoise {
                     .then(|| coarse_noise(samples, pitch, k, spacing)),
             ),
         };
-        let sigma: Vec<f64> = samples.iter().map(|p| fine.at(p)).collect();
+        let sigma: Vec<f64> = samples.par_iter().map(|p| fine.at(p)).collect();
         let model_sigma: Vec<f64> = samples
-            .iter()
+            .par_iter()
             .zip(&sigma)
             .map(|(p, s)| coarse.as_ref().map_or(*s, |c| c.at(p).max(*s)))
             .collect();
         let angles: Vec<f64> = match options.angle {
             Some(a) => vec![a; samples.len()],
             None => sigma
-                .iter()
+                .par_iter()
                 .map(|s| growing_angle(*s, radius, nb.k))
                 .collect(),
         };

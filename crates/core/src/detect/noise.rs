@@ -108,9 +108,10 @@ impl NoiseMap {
             residual: nb.residual[i],
         };
         let usable: Vec<usize> = (0..points.len())
+            .into_par_iter()
             .filter(|&i| nb.normals[i] != Vector3::zeros())
             .collect();
-        let all: Vec<LocalPlane> = usable.iter().map(|&i| plane(i)).collect();
+        let all: Vec<LocalPlane> = usable.par_iter().map(|&i| plane(i)).collect();
         let global = noise_sigma(&all, spacing);
         let edge = CELL_RADII * radius;
         let mut map = NoiseMap {
@@ -121,18 +122,21 @@ impl NoiseMap {
         if !(edge.is_finite() && edge > 0.0) {
             return map;
         }
-        let mut members: HashMap<[i64; 3], Vec<usize>> = HashMap::new();
-        for &i in &usable {
-            members.entry(map.cell(&points[i])).or_default().push(i);
-        }
+        // The usable points by (cell, index), sorted in parallel: each cell's points are
+        // one run, in increasing index.
+        let mut members: Vec<([i64; 3], usize)> = usable
+            .par_iter()
+            .map(|&i| (map.cell(&points[i]), i))
+            .collect();
+        members.par_sort_unstable();
+        let runs: Vec<&[([i64; 3], usize)]> = members.chunk_by(|a, b| a.0 == b.0).collect();
         // Each cell's σ is its own: computed in parallel, the same map on any thread count.
-        let members: Vec<([i64; 3], Vec<usize>)> = members.into_iter().collect();
-        map.cells = members
+        map.cells = runs
             .into_par_iter()
-            .filter(|(_, ids)| ids.len() >= MIN_CELL_SAMPLES)
-            .map(|(key, ids)| {
-                let planes: Vec<LocalPlane> = ids.into_iter().map(plane).collect();
-                (key, noise_sigma(&planes, spacing))
+            .filter(|run| run.len() >= MIN_CELL_SAMPLES)
+            .map(|run| {
+                let planes: Vec<LocalPlane> = run.iter().map(|&(_, i)| plane(i)).collect();
+                (run[0].0, noise_sigma(&planes, spacing))
             })
             .collect();
         map
