@@ -113,7 +113,7 @@ pub fn pca_plane(points: &[Point3<f64>]) -> Option<(Vector3<f64>, f64, f64)> {
 
 /// Local planes of at most `max_points` evenly strided points of `cloud`, `k` neighbours
 /// each (see the module docs). Points whose neighbourhood is degenerate are skipped. On
-/// an even cloud of a few thousand points or more the searches start from a guessed
+/// an even cloud of about a thousand points or more the searches start from a guessed
 /// radius ([`kth_distance_guess`]), which finds the same neighbours faster.
 pub fn local_planes(
     cloud: &[Point3<f64>],

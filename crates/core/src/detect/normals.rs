@@ -5,9 +5,10 @@
 //! ([`crate::surface::pca_plane`]): the unit normal, the flatness ("curvature",
 //! `λ0 / Σλ`, Pauly et al. 2002) and the residual `√λ0` (scene units). Points are
 //! processed in parallel with rayon; each point's result depends on its neighbourhood
-//! only, so the output is the same for any thread count. On clouds of a few thousand
-//! points or more each search starts as a radius search of a guessed radius, which
-//! finds the same neighbours faster ([`PointIndex::nearest_n_guessed`]).
+//! only, so the output is the same for any thread count. On an even cloud of about a
+//! thousand points or more the neighbours come from a grid sized by a guessed radius,
+//! which finds the same neighbours as the kd-tree faster
+//! ([`crate::spatial::NeighbourSearch`]).
 
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;

@@ -206,6 +206,7 @@ impl Grid {
         true
     }
 }
+
 /// The ranges of the sorted points (`starts`: where each occupied cell of `keys` starts)
 /// that hold the points of the 3 × 3 × 3 cells around the cell of `key`, on a grid of
 /// `dims` cells: one range per row of three cells along x, since the occupied cells of a
