@@ -317,17 +317,25 @@ mod tests {
     /// cloud.
     const RADII: [Option<f64>; 5] = [None, Some(1e-6), Some(0.003), Some(0.02), Some(1e4)];
 
+    /// Asserts that the search gives `truth(k)` for every `k` and radius.
+    fn assert_every_radius(
+        pts: &[Point3<f64>],
+        truth: impl Fn(&PointIndex, usize) -> Vec<(u32, f64)>,
+    ) {
+        let index = PointIndex::new(pts);
+        for k in [1, 8, 32] {
+            let expected = truth(&index, k);
+            for r2 in RADII {
+                let rows = neighbour_table(pts, &index, k, r2);
+                assert_eq!(rows, expected, "k {k}, r2 {r2:?}");
+            }
+        }
+    }
+
     #[test]
     fn the_search_is_the_brute_force_answer_for_any_radius() {
         let pts = uneven_cloud(3, false);
-        let index = PointIndex::new(&pts);
-        for k in [1, 8, 32] {
-            let truth = brute_force(&pts, k);
-            for r2 in RADII {
-                let rows = neighbour_table(&pts, &index, k, r2);
-                assert_eq!(rows, truth, "k {k}, r2 {r2:?}");
-            }
-        }
+        assert_every_radius(&pts, |_, k| brute_force(&pts, k));
     }
 
     #[test]
@@ -335,14 +343,7 @@ mod tests {
         // Duplicates and lattice points tie across the k-th place; the grid leaves those
         // points to the tree, whose choice among tied points is its own.
         let pts = uneven_cloud(3, true);
-        let index = PointIndex::new(&pts);
-        for k in [1, 8, 32] {
-            let truth = tree_table(&pts, &index, k);
-            for r2 in RADII {
-                let rows = neighbour_table(&pts, &index, k, r2);
-                assert_eq!(rows, truth, "k {k}, r2 {r2:?}");
-            }
-        }
+        assert_every_radius(&pts, |index, k| tree_table(&pts, index, k));
     }
 
     #[test]
