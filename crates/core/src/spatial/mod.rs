@@ -1,6 +1,8 @@
 //! [`PointIndex`]: exact nearest-neighbour queries over 3-D points; [`PlaneIndex`]: radius
 //! queries over 2-D points (the angles of [`crate::ray::RayTree`]); [`PrimitiveIndex`]:
-//! exact nearest-surface queries over primitives (built on [`PointIndex`]).
+//! exact nearest-surface queries over primitives (built on [`PointIndex`]);
+//! `NeighbourSearch` (`neighbour_grid.rs`): the `k` nearest of every point of a cloud,
+//! through a uniform grid, as [`PointIndex::nearest_n`] answers.
 //!
 //! The only module that imports kiddo; the rest of the crate sees plain
 //! `(index, squared distance)` pairs. Distances returned by [`PointIndex`] and
@@ -47,6 +49,29 @@ impl NearestDistance for BoxTree {
     fn nearest_distance(&self, q: &Point3<f64>, hint: &mut Hint) -> f64 {
         self.nearest(q, hint)
     }
+}
+
+/// The order of neighbours: squared distance, then index.
+pub(crate) fn by_distance_then_index(a: &(u32, f64), b: &(u32, f64)) -> std::cmp::Ordering {
+    a.1.total_cmp(&b.1).then(a.0.cmp(&b.0))
+}
+
+/// Keeps the `k` nearest of `found` (`(index, squared distance)` pairs: every point
+/// within some radius, at least `k` of them), sorted by [`by_distance_then_index`].
+/// False, with `found` reordered, when points tie across the `k`-th place: which of them
+/// are kept is then the kd-tree's choice ([`PointIndex::nearest_n`]), so that every
+/// neighbourhood of the crate is the tree's.
+pub(crate) fn keep_k_nearest(found: &mut Vec<(u32, f64)>, k: usize) -> bool {
+    if found.len() > k {
+        found.select_nth_unstable_by(k - 1, by_distance_then_index);
+        let kth = found[k - 1].1;
+        if found[k..].iter().any(|h| h.1 == kth) {
+            return false;
+        }
+        found.truncate(k);
+    }
+    found.sort_unstable_by(by_distance_then_index);
+    true
 }
 
 /// A static KD-tree over points (kiddo's `ImmutableKdTree<f64, 3>`), tolerant of empty input.
@@ -128,7 +153,7 @@ impl PointIndex {
             .into_iter()
             .map(|r| (r.item, r.distance))
             .collect();
-        out.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        out.sort_by(by_distance_then_index);
         out
     }
 
@@ -152,21 +177,9 @@ impl PointIndex {
         if k == 0 || found.len() < k {
             return self.nearest_n(q, k);
         }
-        let by_distance = |a: &(u32, f64), b: &(u32, f64)| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0));
-        if found.len() > k {
-            found.select_nth_unstable_by(k, by_distance);
-            let kth = found[..k]
-                .iter()
-                .map(|h| h.1)
-                .fold(f64::NEG_INFINITY, f64::max);
-            if found[k].1 == kth {
-                // A tie across the k-th place: which of the tied points are kept is the
-                // k-nearest search's choice, so that it answers as `nearest_n`.
-                return self.nearest_n(q, k);
-            }
-            found.truncate(k);
+        if !keep_k_nearest(&mut found, k) {
+            return self.nearest_n(q, k);
         }
-        found.sort_by(by_distance);
         found
     }
 
@@ -424,7 +437,7 @@ mod tests {
             .enumerate()
             .map(|(i, p)| (i as u32, (p - q).norm_squared()))
             .collect();
-        brute.sort_by(|a, b| a.1.total_cmp(&b.1).then(a.0.cmp(&b.0)));
+        brute.sort_by(by_distance_then_index);
         assert_eq!(idx.nearest(&q).unwrap().0, brute[0].0);
         assert_eq!(idx.nearest_n(&q, 4), brute[..4].to_vec());
         let mut w: Vec<u32> = idx.within(&q, 1.5).into_iter().map(|r| r.0).collect();

@@ -18,7 +18,7 @@
 use nalgebra::Point3;
 use rayon::prelude::*;
 
-use super::{PointIndex, as_array, squared_distance};
+use super::{PointIndex, as_array, keep_k_nearest, squared_distance};
 
 /// Cells per axis at most (2^20 each, so that a cell's key fits 60 bits); a cloud whose
 /// extent spans more cells than this at the guessed radius is searched in the tree.
@@ -77,11 +77,6 @@ impl<'a> NeighbourSearch<'a> {
         }
         &scratch[..self.k.min(scratch.len())]
     }
-}
-
-/// The order of neighbours: squared distance, then index.
-fn by_distance_then_index(a: &(u32, f64), b: &(u32, f64)) -> std::cmp::Ordering {
-    a.1.total_cmp(&b.1).then(a.0.cmp(&b.0))
 }
 
 /// The points sorted by grid cell, and for each occupied cell where the points of the
@@ -192,18 +187,7 @@ impl Grid {
         if out.len() < k {
             return false;
         }
-        if out.len() > k {
-            out.select_nth_unstable_by(k - 1, by_distance_then_index);
-            let kth = out[k - 1].1;
-            if out[k..].iter().any(|h| h.1 == kth) {
-                // A tie across the k-th place: which of the tied points are kept is the
-                // tree's choice, as everywhere else in the crate.
-                return false;
-            }
-            out.truncate(k);
-        }
-        out.sort_unstable_by(by_distance_then_index);
-        true
+        keep_k_nearest(out, k)
     }
 }
 
@@ -232,6 +216,7 @@ fn cells_around(keys: &[u64], starts: &[u32], key: u64, dims: [u64; 3]) -> Vec<(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::spatial::by_distance_then_index;
     use rand::{RngExt, SeedableRng};
     use rand_chacha::ChaCha8Rng;
 
