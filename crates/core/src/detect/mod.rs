@@ -273,13 +273,18 @@ pub fn detect_timed(
     let nb = Neighbourhoods::new(&samples, sample_index, k);
     clock.lap("normals");
     let radius = median_radius(&nb);
+    // The order the regions grow in does not depend on the noise: sorted alongside it.
+    let (noise, flatness) = rayon::join(
+        || SampleNoise::new(options, &samples, &nb, k, spacing, radius, voxel),
+        || FlatnessOrder::new(&nb),
+    );
     let SampleNoise {
         fine,
         coarse,
         sigma,
         model_sigma,
         angles,
-    } = SampleNoise::new(options, &samples, &nb, k, spacing, radius, voxel);
+    } = noise;
     let tolerance = options.tolerance.unwrap_or(DEFAULT_TOLERANCE);
     clock.lap("noise");
     let grow = GrowParams {
@@ -291,7 +296,6 @@ pub fn detect_timed(
         .min_points
         .unwrap_or(MIN_SEGMENT_NEIGHBOURHOODS * nb.k)
         .max(3);
-    let flatness = FlatnessOrder::new(&nb);
     let regions: Vec<Vec<usize>> = grow_regions(&nb, &flatness, &grow)
         .into_iter()
         .filter(|r| r.len() >= min_points)
@@ -377,10 +381,14 @@ impl SampleNoise {
         let pitch = voxel.unwrap_or(spacing);
         let (fine, coarse) = match options.noise {
             Some(s) => (NoiseMap::uniform(s), None),
-            None => (
-                NoiseMap::new(samples, nb, spacing, radius),
-                sees_finer_than_coarse(voxel, spacing)
-                    .then(|| coarse_noise(samples, pitch, k, spacing)),
+            // Two independent maps: their serial parts (the coarse grid's voxels and
+            // kd-tree, each map's global level) overlap.
+            None => rayon::join(
+                || NoiseMap::new(samples, nb, spacing, radius),
+                || {
+                    sees_finer_than_coarse(voxel, spacing)
+                        .then(|| coarse_noise(samples, pitch, k, spacing))
+                },
             ),
         };
         let sigma: Vec<f64> = samples.par_iter().map(|p| fine.at(p)).collect();

@@ -111,35 +111,20 @@ impl NoiseMap {
             .into_par_iter()
             .filter(|&i| nb.normals[i] != Vector3::zeros())
             .collect();
-        let all: Vec<LocalPlane> = usable.par_iter().map(|&i| plane(i)).collect();
-        let global = noise_sigma(&all, spacing);
         let edge = CELL_RADII * radius;
-        let mut map = NoiseMap {
+        // The global level and the cells' levels are independent: computed side by side.
+        let (global, cells) = rayon::join(
+            || {
+                let all: Vec<LocalPlane> = usable.par_iter().map(|&i| plane(i)).collect();
+                noise_sigma(&all, spacing)
+            },
+            || cell_levels(points, &usable, edge, spacing, plane),
+        );
+        NoiseMap {
             edge,
-            cells: HashMap::new(),
+            cells,
             global,
-        };
-        if !(edge.is_finite() && edge > 0.0) {
-            return map;
         }
-        // The usable points by (cell, index), sorted in parallel: each cell's points are
-        // one run, in increasing index.
-        let mut members: Vec<([i64; 3], usize)> = usable
-            .par_iter()
-            .map(|&i| (map.cell(&points[i]), i))
-            .collect();
-        members.par_sort_unstable();
-        let runs: Vec<&[([i64; 3], usize)]> = members.chunk_by(|a, b| a.0 == b.0).collect();
-        // Each cell's σ is its own: computed in parallel, the same map on any thread count.
-        map.cells = runs
-            .into_par_iter()
-            .filter(|run| run.len() >= MIN_CELL_SAMPLES)
-            .map(|run| {
-                let planes: Vec<LocalPlane> = run.iter().map(|&(_, i)| plane(i)).collect();
-                (run[0].0, noise_sigma(&planes, spacing))
-            })
-            .collect();
-        map
     }
 
     /// The same σ everywhere.
@@ -153,8 +138,7 @@ impl NoiseMap {
 
     /// The cell of `p`.
     fn cell(&self, p: &Point3<f64>) -> [i64; 3] {
-        let c = p.coords.map(|c| (c / self.edge).floor() as i64);
-        [c.x, c.y, c.z]
+        cell_of(p, self.edge)
     }
 
     /// σ at `p` (scene units).
@@ -172,4 +156,40 @@ impl NoiseMap {
     pub fn global(&self) -> f64 {
         self.global
     }
+}
+
+/// The σ of each cell of edge `edge` (scene units) that holds at least
+/// [`MIN_CELL_SAMPLES`] of the `usable` points, from their local planes (`plane(i)`);
+/// none when the edge is not a positive finite length.
+fn cell_levels(
+    points: &[Point3<f64>],
+    usable: &[usize],
+    edge: f64,
+    spacing: f64,
+    plane: impl Fn(usize) -> LocalPlane + Sync,
+) -> HashMap<[i64; 3], f64> {
+    if !(edge.is_finite() && edge > 0.0) {
+        return HashMap::new();
+    }
+    let cell = |p: &Point3<f64>| cell_of(p, edge);
+    // The usable points by (cell, index), sorted in parallel: each cell's points are
+    // one run, in increasing index.
+    let mut members: Vec<([i64; 3], usize)> =
+        usable.par_iter().map(|&i| (cell(&points[i]), i)).collect();
+    members.par_sort_unstable();
+    let runs: Vec<&[([i64; 3], usize)]> = members.chunk_by(|a, b| a.0 == b.0).collect();
+    // Each cell's σ is its own: computed in parallel, the same map on any thread count.
+    runs.into_par_iter()
+        .filter(|run| run.len() >= MIN_CELL_SAMPLES)
+        .map(|run| {
+            let planes: Vec<LocalPlane> = run.iter().map(|&(_, i)| plane(i)).collect();
+            (run[0].0, noise_sigma(&planes, spacing))
+        })
+        .collect()
+}
+
+/// The cell of edge `edge` that holds `p`.
+fn cell_of(p: &Point3<f64>, edge: f64) -> [i64; 3] {
+    let c = p.coords.map(|c| (c / edge).floor() as i64);
+    [c.x, c.y, c.z]
 }
