@@ -62,7 +62,7 @@ STAGE_GROUPS = [
     ("expand + leftovers", ["fit.detect.expand", "fit.detect.leftovers"]),
     ("propose + samples", ["fit.propose", "fit.samples", "fit.free_space"]),
     ("coefficients", ["fit.existence.coefficients"]),
-    ("solve", ["fit.existence.solve"]),
+    ("solve + trim", ["fit.existence.solve", "fit.trim"]),
     ("measures", ["measures"]),
     ("write", ["write"]),
 ]

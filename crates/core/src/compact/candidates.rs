@@ -75,11 +75,23 @@ fn segment_candidates(
     match segment.model {
         SurfaceModel::Plane { normal, .. } => {
             let own: Vec<Point3<f64>> = segment.points.iter().map(|&i| points[i]).collect();
-            let spacing = own_spacing(points, index, &segment.points).unwrap_or(fallback_spacing);
-            bounded_planes(&own, normal, OUTLINE_CELLS_PER_SPACING * spacing)
+            let cell = outline_cell(points, index, &segment.points, fallback_spacing);
+            bounded_planes(&own, normal, cell)
         }
         _ => segment.primitive().into_iter().collect(),
     }
+}
+
+/// The outline cell of the plane of `members` (ascending indices into `points`):
+/// [`OUTLINE_CELLS_PER_SPACING`] of their own median spacing, or of `fallback_spacing`
+/// when theirs cannot be measured (scene units).
+pub(super) fn outline_cell(
+    points: &[Point3<f64>],
+    index: &PointIndex,
+    members: &[usize],
+    fallback_spacing: f64,
+) -> f64 {
+    OUTLINE_CELLS_PER_SPACING * own_spacing(points, index, members).unwrap_or(fallback_spacing)
 }
 
 /// The median nearest-neighbour distance among the points `members` (ascending
@@ -125,7 +137,7 @@ fn second_member(
 /// part of them. When the parts together are too complex for one plane
 /// ([`crate::atlas::MAX_PLANE_VERTICES`]: a large, much fragmented surface), one plane
 /// per part instead, so that no surface is lost; none when they give no outline.
-fn bounded_planes(
+pub(super) fn bounded_planes(
     points: &[Point3<f64>],
     normal: nalgebra::Vector3<f64>,
     cell: f64,

@@ -9,6 +9,7 @@
 //! | description length of a primitive, in loss units | `mdl.rs` |
 //! | the nearest of a partial tube's samples, in constant time | `tube_lattice.rs` |
 //! | existence of the candidates | `existence.rs` |
+//! | planes trimmed where a larger primitive covers them | `trim.rs` |
 //! | the whole: [`compact_model`] | `model.rs` |
 
 mod candidates;
@@ -16,6 +17,7 @@ mod existence;
 mod geometry;
 mod mdl;
 mod model;
+mod trim;
 mod tube_lattice;
 
 pub(crate) use mdl::primitive_cost;

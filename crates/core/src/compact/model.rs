@@ -6,6 +6,7 @@ use rayon::prelude::*;
 use super::candidates::{CandidateSamples, Proposal, judged_samples, planned_samples, propose};
 use super::existence::{ExistenceOptions, decide_existence};
 use super::mdl::primitive_cost;
+use super::trim::{Cloud, Kept, Pricing, trim_overlaps};
 use crate::chamfer::ChamferOptions;
 use crate::detect::{DetectOptions, Detection, detect_timed};
 use crate::error::{Remedy, Unit};
@@ -158,14 +159,24 @@ pub fn compact_model(
         &existence_options,
         progress,
     )?;
-    let (mut primitives, mut existence) = (Vec::new(), Vec::new());
-    for (i, c) in candidates.into_iter().enumerate() {
-        if decision.exists[i] {
-            primitives.push(c);
-            existence.push(decision.probability[i]);
-        }
-    }
     clock.nest("existence", &decision.times);
+    let (primitives, existence) = trimmed_model(
+        Cloud {
+            points,
+            index,
+            spacing,
+        },
+        &detection,
+        &proposals,
+        &decision.exists,
+        &decision.probability,
+        Pricing {
+            cap,
+            noise,
+            point_weight: options.weights.map_or(1.0, |w| w[1]),
+        },
+    );
+    clock.lap("trim");
     let existence_seconds: f64 = (clock.times.iter())
         .filter(|(stage, _)| !stage.starts_with("detect"))
         .map(|(_, t)| t)
@@ -189,6 +200,64 @@ pub fn compact_model(
         existence_seconds,
         times: clock.times,
     })
+}
+
+/// The candidates that exist (`exists`), with their existence `probability`, trimmed
+/// where a larger one covers them (`trim.rs`): the model's primitives and the existence
+/// of each.
+fn trimmed_model(
+    cloud: Cloud,
+    detection: &Detection,
+    proposals: &[Proposal],
+    exists: &[bool],
+    probability: &[f64],
+    pricing: Pricing,
+) -> (Vec<Primitive>, Vec<f64>) {
+    let kept_ids: Vec<usize> = (0..proposals.len()).filter(|&i| exists[i]).collect();
+    let kept: Vec<Kept> = kept_ids
+        .par_iter()
+        .map(|&i| Kept {
+            primitive: proposals[i].primitive.clone(),
+            members: members(cloud.points, detection, proposals, i),
+        })
+        .collect();
+    let trimmed = trim_overlaps(cloud, &kept, pricing);
+    let (mut primitives, mut existence) = (Vec::new(), Vec::new());
+    for (&i, parts) in kept_ids.iter().zip(trimmed) {
+        existence.extend(parts.iter().map(|_| probability[i]));
+        primitives.extend(parts);
+    }
+    (primitives, existence)
+}
+
+/// The points proposal `i` was built from: its segment's, or, when the segment proposed
+/// several primitives, those nearer to this one than to the others (ties: the first).
+fn members(
+    points: &[Point3<f64>],
+    detection: &Detection,
+    proposals: &[Proposal],
+    i: usize,
+) -> Vec<usize> {
+    let segment = proposals[i].segment;
+    let siblings: Vec<&Primitive> = (proposals.iter())
+        .filter(|p| p.segment == segment)
+        .map(|p| &p.primitive)
+        .collect();
+    let own = &detection.segments[segment].points;
+    if siblings.len() == 1 {
+        return own.clone();
+    }
+    let me = &proposals[i].primitive;
+    own.iter()
+        .copied()
+        .filter(|&j| {
+            let nearest = siblings
+                .iter()
+                .min_by(|a, b| a.distance(&points[j]).total_cmp(&b.distance(&points[j])))
+                .expect("a segment's own proposal");
+            std::ptr::eq(*nearest, me)
+        })
+        .collect()
 }
 
 /// Refuses candidates whose samples at `sample_spacing` would exceed

@@ -38,6 +38,7 @@ use crate::{Error, Primitive, Result, check};
 mod overlap;
 
 pub use overlap::{DOUBLE_COVER_MAX_ANGLE_DEG, double_cover_share, overlap_share};
+pub(crate) use overlap::{covers_along, surface_normal};
 
 /// Consecutive points per parallel task of [`point_to_model_distances`].
 const NEAREST_CHUNK: usize = 1024;

@@ -108,7 +108,6 @@ fn is_covered<'a>(
     spacing: f64,
     cover: Cover,
 ) -> bool {
-    let cos_max = DOUBLE_COVER_MAX_ANGLE_DEG.to_radians().cos();
     let mut normal: Option<Vector3<f64>> = None;
     for b in others {
         if (x - b.center()).norm() - b.bounding_radius() > h {
@@ -121,16 +120,8 @@ fn is_covered<'a>(
                 }
             }
             Cover::Along => {
-                let y = b.closest_point(x);
-                let offset = y - x;
-                let d = offset.norm();
-                if d > h {
-                    continue;
-                }
                 let n = *normal.get_or_insert_with(|| surface_normal(a, x, spacing));
-                let along =
-                    d <= COINCIDENT_SPACINGS * spacing || offset.dot(&n).abs() >= cos_max * d;
-                if along && surface_normal(b, &y, spacing).dot(&n).abs() >= cos_max {
+                if covers_along(x, &n, b, h, spacing) {
                     return true;
                 }
             }
@@ -139,11 +130,34 @@ fn is_covered<'a>(
     false
 }
 
+/// Whether `b` runs over or under the surface point `x` (unit normal `n`), the test of
+/// [`double_cover_share`]: `b`'s nearest point is within `h` (scene units) along `n`
+/// (within [`DOUBLE_COVER_MAX_ANGLE_DEG`]) or coincides with `x`, and `b`'s surface is
+/// parallel to `n`'s there, within the same angle; `spacing` (scene units) scales the
+/// coincidence and the normal probe.
+pub(crate) fn covers_along(
+    x: &Point3<f64>,
+    n: &Vector3<f64>,
+    b: &Primitive,
+    h: f64,
+    spacing: f64,
+) -> bool {
+    let cos_max = DOUBLE_COVER_MAX_ANGLE_DEG.to_radians().cos();
+    let y = b.closest_point(x);
+    let offset = y - x;
+    let d = offset.norm();
+    if d > h {
+        return false;
+    }
+    let along = d <= COINCIDENT_SPACINGS * spacing || offset.dot(n).abs() >= cos_max * d;
+    along && surface_normal(b, &y, spacing).dot(n).abs() >= cos_max
+}
+
 /// The unit normal of `p` at its surface point `x`: the offset from a probe point just
 /// off `x` to its closest surface point is along the normal there. Of the three probes
 /// along the coordinate axes the one with the longest offset is used (at least `1/√3`
 /// of the step for any normal).
-fn surface_normal(p: &Primitive, x: &Point3<f64>, spacing: f64) -> Vector3<f64> {
+pub(crate) fn surface_normal(p: &Primitive, x: &Point3<f64>, spacing: f64) -> Vector3<f64> {
     let step = NORMAL_PROBE * p.bounding_radius().max(spacing);
     (0..3)
         .map(|k| {
