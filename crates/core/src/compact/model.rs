@@ -1,5 +1,7 @@
 //! The compact model: detect → propose → decide existence.
 
+use std::borrow::Cow;
+
 use nalgebra::Point3;
 use rayon::prelude::*;
 
@@ -213,12 +215,13 @@ fn trimmed_model(
     probability: &[f64],
     pricing: Pricing,
 ) -> (Vec<Primitive>, Vec<f64>) {
+    let mut members = kept_members(cloud.points, detection, proposals, exists);
     let kept_ids: Vec<usize> = (0..proposals.len()).filter(|&i| exists[i]).collect();
     let kept: Vec<Kept> = kept_ids
-        .par_iter()
+        .iter()
         .map(|&i| Kept {
             primitive: proposals[i].primitive.clone(),
-            members: members(cloud.points, detection, proposals, i),
+            members: std::mem::take(&mut members[i]),
         })
         .collect();
     let trimmed = trim_overlaps(cloud, &kept, pricing);
@@ -230,34 +233,44 @@ fn trimmed_model(
     (primitives, existence)
 }
 
-/// The points proposal `i` was built from: its segment's, or, when the segment proposed
-/// several primitives, those nearer to this one than to the others (ties: the first).
-fn members(
+/// The points each proposal that `exists` was built from (empty for the others): its
+/// segment's, or, where the segment proposed several primitives, those nearer to it
+/// than to its siblings (ties: the first).
+fn kept_members<'a>(
     points: &[Point3<f64>],
-    detection: &Detection,
+    detection: &'a Detection,
     proposals: &[Proposal],
-    i: usize,
-) -> Vec<usize> {
-    let segment = proposals[i].segment;
-    let siblings: Vec<&Primitive> = (proposals.iter())
-        .filter(|p| p.segment == segment)
-        .map(|p| &p.primitive)
-        .collect();
-    let own = &detection.segments[segment].points;
-    if siblings.len() == 1 {
-        return own.clone();
+    exists: &[bool],
+) -> Vec<Cow<'a, [usize]>> {
+    let mut siblings: Vec<Vec<usize>> = vec![Vec::new(); detection.segments.len()];
+    for (i, p) in proposals.iter().enumerate() {
+        siblings[p.segment].push(i);
     }
-    let me = &proposals[i].primitive;
-    own.iter()
-        .copied()
-        .filter(|&j| {
-            let nearest = siblings
-                .iter()
-                .min_by(|a, b| a.distance(&points[j]).total_cmp(&b.distance(&points[j])))
-                .expect("a segment's own proposal");
-            std::ptr::eq(*nearest, me)
-        })
-        .collect()
+    let mut members: Vec<Cow<[usize]>> = vec![Cow::Borrowed(&[]); proposals.len()];
+    for (segment, ids) in detection.segments.iter().zip(&siblings) {
+        if !ids.iter().any(|&i| exists[i]) {
+            continue;
+        }
+        if let [only] = ids[..] {
+            members[only] = Cow::Borrowed(&segment.points);
+            continue;
+        }
+        let nearest: Vec<usize> = (segment.points.par_iter())
+            .map(|&j| {
+                let d = |&&k: &&usize| proposals[k].primitive.distance(&points[j]);
+                let by_distance = |a: &&usize, b: &&usize| d(a).total_cmp(&d(b));
+                *ids.iter()
+                    .min_by(by_distance)
+                    .expect("a segment's own proposal")
+            })
+            .collect();
+        for (&j, &k) in segment.points.iter().zip(&nearest) {
+            if exists[k] {
+                members[k].to_mut().push(j);
+            }
+        }
+    }
+    members
 }
 
 /// Refuses candidates whose samples at `sample_spacing` would exceed

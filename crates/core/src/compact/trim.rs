@@ -25,6 +25,8 @@
 //! cylinder or sphere, whose extent is parametric, is kept whole or dropped by the same
 //! trade.
 
+use std::borrow::Cow;
+
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
@@ -36,11 +38,11 @@ use crate::{Primitive, Shape};
 
 /// A primitive of the model and the points it was built from.
 #[derive(Debug, Clone)]
-pub struct Kept {
+pub struct Kept<'a> {
     /// The primitive.
     pub primitive: Primitive,
     /// Indices into the cloud of the points it was outlined from (ascending).
-    pub members: Vec<usize>,
+    pub members: Cow<'a, [usize]>,
 }
 
 /// The cloud the model describes: its points, their index and point spacing (scene
@@ -221,7 +223,9 @@ mod tests {
 
     /// The model of `surfaces` (each points and normal) as one cloud: a bounded plane per
     /// surface, outlined from its points as the candidates are, and the trimmed model.
-    fn trimmed(surfaces: &[(Vec<Point3<f64>>, Vector3<f64>)]) -> (Vec<Kept>, Vec<Vec<Primitive>>) {
+    fn trimmed(
+        surfaces: &[(Vec<Point3<f64>>, Vector3<f64>)],
+    ) -> (Vec<Kept<'static>>, Vec<Vec<Primitive>>) {
         let points: Vec<Point3<f64>> = surfaces.iter().flat_map(|s| s.0.clone()).collect();
         let index = PointIndex::new(&points);
         let cloud = Cloud {
@@ -240,7 +244,7 @@ mod tests {
                 assert_eq!(planes.len(), 1);
                 Kept {
                     primitive: planes.remove(0),
-                    members,
+                    members: members.into(),
                 }
             })
             .collect();
