@@ -161,8 +161,9 @@ fn plane_offset(b: &Primitive, x: &Point3<f64>) -> Option<f64> {
 }
 
 /// Whether `parts` explain the points `rest` better than `near` do by more than they
-/// cost: the existence decision's own trade (thesis eq. 6.1 with the description length
-/// of `mdl.rs`), the point term `w Σ min(d², cap²)` against the parts' `k σ² ln J`.
+/// cost: the existence decision's own trade, what adding them saves of the point term
+/// `w Σ min(d², cap²)` (a point pays for the nearer of both) against their description
+/// length `k σ² ln J` (`mdl.rs`).
 fn worth_keeping(
     cloud: Cloud,
     rest: &[usize],
