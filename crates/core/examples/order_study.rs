@@ -1,10 +1,10 @@
 //! How much the default fit depends on the order of the points: fits a scan as read and
 //! permuted by several seeds, and prints each model's primitive count, double cover
 //! (`metrics::double_cover_share`) and point→model mean; with `--pairs`, every pair of
-//! primitives that covers area twice.
+//! primitives that covers area twice; with `--list`, every primitive.
 //!
 //! ```text
-//! cargo run --release -p primfit-core --example order_study -- SCAN.ply [PERMUTATIONS] [--pairs]
+//! cargo run --release -p primfit-core --example order_study -- SCAN.ply [PERMUTATIONS] [--pairs] [--list]
 //! ```
 
 use std::path::PathBuf;
@@ -18,11 +18,12 @@ use rand::seq::SliceRandom;
 use rand_chacha::ChaCha8Rng;
 
 fn main() -> Result<(), Box<dyn std::error::Error>> {
-    let usage = "usage: order_study SCAN.ply [PERMUTATIONS] [--pairs]";
-    let (mut path, mut permutations, mut pairs) = (None, 8u64, false);
+    let usage = "usage: order_study SCAN.ply [PERMUTATIONS] [--pairs] [--list]";
+    let (mut path, mut permutations, mut pairs, mut list) = (None, 8u64, false, false);
     for a in std::env::args().skip(1) {
         match a.as_str() {
             "--pairs" => pairs = true,
+            "--list" => list = true,
             _ if path.is_none() => path = Some(PathBuf::from(a)),
             _ => permutations = a.parse().map_err(|_| usage)?,
         }
@@ -46,6 +47,18 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
             100.0 * double,
             m.point_to_model_mean
         );
+        if list {
+            for p in prims {
+                let c = p.pose.to_scene(&primfit_core::na::Point3::origin());
+                println!(
+                    "    {} {:.3} m² at {:.2?}: {:?}",
+                    p.shape.kind().name(),
+                    p.area(),
+                    c.coords.as_slice(),
+                    p.shape
+                );
+            }
+        }
         if pairs {
             print_pairs(prims, h)?;
         }

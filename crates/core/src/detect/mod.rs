@@ -296,7 +296,13 @@ pub fn detect_timed(
         .min_points
         .unwrap_or(MIN_SEGMENT_NEIGHBOURHOODS * nb.k)
         .max(3);
-    let regions: Vec<Vec<usize>> = grow_regions(&nb, &flatness, &grow)
+    // Growing is sequential; the samples' curvature-free residuals, which the models
+    // are judged by (`split.rs`), are computed beside it.
+    let (regions, quadric) = rayon::join(
+        || grow_regions(&nb, &flatness, &grow),
+        || noise::quadric_residuals(&samples, &nb),
+    );
+    let regions: Vec<Vec<usize>> = regions
         .into_iter()
         .filter(|r| r.len() >= min_points)
         .collect();
@@ -310,6 +316,7 @@ pub fn detect_timed(
         spheres: options.spheres,
         min_points,
         neighbours: grow.neighbours,
+        quadric: &quadric,
     };
     let parts: Vec<Part> = map_largest_first(regions, Vec::len, |ids| splitter.parts(ids))
         .into_iter()

@@ -5,7 +5,8 @@
 //! noisier than one 0.8 m away in the same frame (the shared table scan: 0.25 mm near,
 //! 0.9 mm far, measured). One global σ then splits the far surfaces and merges the near
 //! ones. A [`NoiseMap`] cuts space into cubic cells of [`CELL_RADII`] neighbourhood
-//! radii; a cell's σ is the floored estimate of [`crate::surface::noise_sigma`] (the
+//! radii, fixed to the cloud's lowest corner (so that moving a scan moves its cells with
+//! it, [`super::sample::voxel_of`]); a cell's σ is the floored estimate of [`crate::surface::noise_sigma`] (the
 //! median residual of the flattest half of its neighbourhoods, at least `s/√12`) over
 //! the points in it, if it holds at least [`MIN_CELL_SAMPLES`] of them; thinner cells
 //! take the global value. Taking the flattest half keeps creases and clutter in a cell
@@ -28,6 +29,7 @@ use nalgebra::{Point3, SMatrix, SVector, Vector3};
 use rayon::prelude::*;
 
 use super::normals::Neighbourhoods;
+use super::sample::voxel_of;
 use crate::surface::{LocalPlane, noise_sigma};
 
 /// Cell edge of the noise map, in median neighbourhood radii: large enough that a cell
@@ -90,6 +92,8 @@ pub fn quadric_residuals(points: &[Point3<f64>], nb: &Neighbourhoods) -> Vec<f64
 pub struct NoiseMap {
     /// Cell edge (scene units).
     edge: f64,
+    /// A corner of the grid of cells: the lowest corner of the cloud's bounding box.
+    anchor: Point3<f64>,
     /// σ of each cell with enough points.
     cells: HashMap<[i64; 3], f64>,
     /// σ over all points: the value of every other cell.
@@ -112,16 +116,18 @@ impl NoiseMap {
             .filter(|&i| nb.normals[i] != Vector3::zeros())
             .collect();
         let edge = CELL_RADII * radius;
+        let anchor = crate::cloud::bounds_of(points).map_or(Point3::origin(), |b| b.0);
         // The global level and the cells' levels are independent: computed side by side.
         let (global, cells) = rayon::join(
             || {
                 let all: Vec<LocalPlane> = usable.par_iter().map(|&i| plane(i)).collect();
                 noise_sigma(&all, spacing)
             },
-            || cell_levels(points, &usable, edge, spacing, plane),
+            || cell_levels(points, &usable, (&anchor, edge), spacing, plane),
         );
         NoiseMap {
             edge,
+            anchor,
             cells,
             global,
         }
@@ -131,6 +137,7 @@ impl NoiseMap {
     pub fn uniform(sigma: f64) -> Self {
         NoiseMap {
             edge: f64::INFINITY,
+            anchor: Point3::origin(),
             cells: HashMap::new(),
             global: sigma,
         }
@@ -138,7 +145,7 @@ impl NoiseMap {
 
     /// The cell of `p`.
     fn cell(&self, p: &Point3<f64>) -> [i64; 3] {
-        cell_of(p, self.edge)
+        voxel_of(p, &self.anchor, self.edge)
     }
 
     /// σ at `p` (scene units).
@@ -158,20 +165,20 @@ impl NoiseMap {
     }
 }
 
-/// The σ of each cell of edge `edge` (scene units) that holds at least
-/// [`MIN_CELL_SAMPLES`] of the `usable` points, from their local planes (`plane(i)`);
-/// none when the edge is not a positive finite length.
+/// The σ of each cell of the grid `(anchor, edge)` (a corner, scene units) that holds at
+/// least [`MIN_CELL_SAMPLES`] of the `usable` points, from their local planes
+/// (`plane(i)`); none when the edge is not a positive finite length.
 fn cell_levels(
     points: &[Point3<f64>],
     usable: &[usize],
-    edge: f64,
+    (anchor, edge): (&Point3<f64>, f64),
     spacing: f64,
     plane: impl Fn(usize) -> LocalPlane + Sync,
 ) -> HashMap<[i64; 3], f64> {
     if !(edge.is_finite() && edge > 0.0) {
         return HashMap::new();
     }
-    let cell = |p: &Point3<f64>| cell_of(p, edge);
+    let cell = |p: &Point3<f64>| voxel_of(p, anchor, edge);
     // The usable points by (cell, index), sorted in parallel: each cell's points are
     // one run, in increasing index.
     let mut members: Vec<([i64; 3], usize)> =
@@ -186,10 +193,4 @@ fn cell_levels(
             (run[0].0, noise_sigma(&planes, spacing))
         })
         .collect()
-}
-
-/// The cell of edge `edge` that holds `p`.
-fn cell_of(p: &Point3<f64>, edge: f64) -> [i64; 3] {
-    let c = p.coords.map(|c| (c / edge).floor() as i64);
-    [c.x, c.y, c.z]
 }

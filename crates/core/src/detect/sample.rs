@@ -3,6 +3,10 @@
 //! grow with the scan's density. Each sample is an input point (the one nearest its
 //! voxel's centre), so every result still names input points; the other points are
 //! handed to the segment of their nearest sample afterwards ([`super::expand`]).
+//!
+//! The voxels are fixed to the cloud (a corner at its bounding box's lowest corner), not
+//! to the origin: a scan moved by any offset is cut into the same voxels, so its
+//! detection does not depend on where it lies (docs/compact.md).
 
 use nalgebra::Point3;
 use rayon::prelude::*;
@@ -57,19 +61,24 @@ pub fn voxel_grid(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
 /// no particular order. A parallel sort of (voxel, index) pairs: 32 bytes a point, and
 /// the same answer on any number of threads.
 fn occupied(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
+    let anchor = crate::cloud::bounds_of(points).map_or(Point3::origin(), |b| b.0);
     let mut cells: Vec<([i64; 3], usize)> = points
         .par_iter()
         .enumerate()
-        .map(|(i, p)| {
-            let cell = p.coords.map(|c| (c / edge).floor() as i64);
-            ([cell.x, cell.y, cell.z], i)
-        })
+        .map(|(i, p)| (voxel_of(p, &anchor, edge), i))
         .collect();
     cells.par_sort_unstable();
     cells
         .chunk_by(|a, b| a.0 == b.0)
         .map(|run| run[0].1)
         .collect()
+}
+
+/// The voxel of edge `edge` holding `p`, in a grid with a corner at `anchor` (the cloud's
+/// lowest corner: a grid fixed to the cloud, so that moving the cloud moves its voxels).
+pub(crate) fn voxel_of(p: &Point3<f64>, anchor: &Point3<f64>, edge: f64) -> [i64; 3] {
+    let c = (p - anchor).map(|c| (c / edge).floor() as i64);
+    [c.x, c.y, c.z]
 }
 
 #[cfg(test)]

@@ -56,6 +56,10 @@ pub struct Splitter<'a> {
     pub min_points: usize,
     /// Neighbours that connect samples (the growing neighbourhood).
     pub neighbours: usize,
+    /// Each sample's residual off a height quadric in its neighbourhood
+    /// ([`super::noise::quadric_residuals`], scene units): its noise without the
+    /// curvature that inflates `nb.residual` on pipes and poles.
+    pub quadric: &'a [f64],
 }
 
 /// A candidate dominant plane: its inlier count, a point on it and its unit normal.
@@ -225,11 +229,12 @@ impl Splitter<'_> {
         pieces
     }
 
-    /// A part's noise: the median of the model σ over its samples, or the median residual
-    /// of its samples where that is larger; and that median residual (the finest scale).
+    /// A part's noise: the median of the model σ over its samples, or the median quadric
+    /// residual of its samples where that is larger; and that median residual (the
+    /// finest scale, without the surface's curvature).
     fn noise(&self, ids: &[usize]) -> (f64, f64) {
         let mut s: Vec<f64> = ids.iter().map(|&i| self.model_sigma[i]).collect();
-        let mut r: Vec<f64> = ids.iter().map(|&i| self.nb.residual[i]).collect();
+        let mut r: Vec<f64> = ids.iter().map(|&i| self.quadric[i]).collect();
         let local = median(&mut s).unwrap_or(0.0);
         let fine = median(&mut r).unwrap_or(0.0);
         (fine.max(local), fine)

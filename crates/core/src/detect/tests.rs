@@ -207,6 +207,38 @@ fn detection_does_not_depend_on_the_thread_count() {
     assert_eq!(one, three);
 }
 
+#[test]
+fn detection_does_not_depend_on_where_the_scan_lies() {
+    // The voxel subsample and the noise map's cells are grids fixed to the cloud, not to
+    // the origin: moving the scan moves them with it, and the same points form the same
+    // segments. (Fixed to the origin, this shift puts different points in each voxel
+    // and cell, and the segments change.) The room is subsampled (voxels) and large
+    // enough for many noise cells.
+    let (scene, _) = room(400.0, 0.003, 2);
+    let shift = Vector3::new(0.37, -1.13, 2.9);
+    let moved = Labelled {
+        points: scene.points.iter().map(|p| p + shift).collect(),
+        label: scene.label.clone(),
+    };
+    let options = DetectOptions {
+        max_samples: Some(4_000),
+        ..Default::default()
+    };
+    let (here, there) = (scene.detect(&options), moved.detect(&options));
+    assert!(here.voxel.is_some(), "not subsampled: the test proves less");
+    let members = |d: &Detection| -> Vec<Vec<usize>> {
+        d.segments.iter().map(|s| s.points.clone()).collect()
+    };
+    assert_eq!(
+        members(&here),
+        members(&there),
+        "{} vs {}",
+        summary(&here),
+        summary(&there)
+    );
+    assert!((here.noise - there.noise).abs() <= 1e-9 * here.noise);
+}
+
 /// A half cylinder (180° visible, as a mug seen from one side) of radius `r` and
 /// height `h` standing on a 0.4 m square floor at z = 0: labels 0 (floor), 1 (cylinder).
 fn mug_on_a_table(r: f64, h: f64, sigma: f64, density: f64, seed: u64) -> Labelled {
