@@ -6,8 +6,8 @@
 //! 0.9 mm far, measured). One global σ then splits the far surfaces and merges the near
 //! ones. A [`NoiseMap`] cuts space into cubic cells of [`CELL_RADII`] neighbourhood
 //! radii, fixed to the cloud's lowest corner (so that moving a scan moves its cells with
-//! it, [`super::sample::voxel_of`]); a cell's σ is the floored estimate of [`crate::surface::noise_sigma`] (the
-//! median residual of the flattest half of its neighbourhoods, at least `s/√12`) over
+//! it, [`super::sample::voxel_of`]); a cell's σ is the floored estimate of
+//! [`crate::surface::noise_sigma`] (the median residual of the flattest half of its neighbourhoods, at least `s/√12`) over
 //! the points in it, if it holds at least [`MIN_CELL_SAMPLES`] of them; thinner cells
 //! take the global value. Taking the flattest half keeps creases and clutter in a cell
 //! from inflating its σ.
