@@ -29,7 +29,7 @@ use nalgebra::{Point3, SMatrix, SVector, Vector3};
 use rayon::prelude::*;
 
 use super::normals::Neighbourhoods;
-use super::sample::voxel_of;
+use super::sample::{grid_anchor, voxel_of};
 use crate::surface::{LocalPlane, noise_sigma};
 
 /// Cell edge of the noise map, in median neighbourhood radii: large enough that a cell
@@ -116,7 +116,7 @@ impl NoiseMap {
             .filter(|&i| nb.normals[i] != Vector3::zeros())
             .collect();
         let edge = CELL_RADII * radius;
-        let anchor = crate::cloud::bounds_of(points).map_or(Point3::origin(), |b| b.0);
+        let anchor = grid_anchor(points);
         // The global level and the cells' levels are independent: computed side by side.
         let (global, cells) = rayon::join(
             || {

@@ -61,7 +61,7 @@ pub fn voxel_grid(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
 /// no particular order. A parallel sort of (voxel, index) pairs: 32 bytes a point, and
 /// the same answer on any number of threads.
 fn occupied(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
-    let anchor = crate::cloud::bounds_of(points).map_or(Point3::origin(), |b| b.0);
+    let anchor = grid_anchor(points);
     let mut cells: Vec<([i64; 3], usize)> = points
         .par_iter()
         .enumerate()
@@ -72,6 +72,12 @@ fn occupied(points: &[Point3<f64>], edge: f64) -> Vec<usize> {
         .chunk_by(|a, b| a.0 == b.0)
         .map(|run| run[0].1)
         .collect()
+}
+
+/// The corner the detection's grids are fixed to: the lowest corner of `points`' bounding
+/// box (the origin for no points), so that moving the cloud moves its voxels with it.
+pub(crate) fn grid_anchor(points: &[Point3<f64>]) -> Point3<f64> {
+    crate::cloud::bounds_of(points).map_or(Point3::origin(), |b| b.0)
 }
 
 /// The voxel of edge `edge` holding `p`, in a grid with a corner at `anchor` (the cloud's
