@@ -5,7 +5,7 @@
 
 use std::f64::consts::{FRAC_PI_2, PI, TAU};
 
-use nalgebra::{Point3, Vector3};
+use nalgebra::{Matrix3, Point3, Rotation3, UnitQuaternion, Vector3};
 
 use super::TriMesh;
 use super::numeric::{apportion, cell_count, closest_on_circle, poly_roots_in, sample_count};
@@ -14,6 +14,17 @@ use super::tube::TUBE_SEGMENTS;
 /// Rings along the quarter arc in [`elbow_mesh`]: 3.75° per segment, so the chord
 /// sagitta on the outer equator is (B + r)(1 − cos(π/96)) < 0.06 % of the size.
 const ARC_SEGMENTS: usize = 24;
+
+/// The rotation of an elbow whose centre line enters with tangent `d_in` and leaves with
+/// tangent `d_out` (unit, perpendicular): local x ↦ −`d_out`, y ↦ `d_in`, z ↦ their
+/// cross product. The local arc runs from radial +x (tangent +y) to radial +y (tangent
+/// −x), so with the torus centre at `entry + bend·d_out` the arc runs from `entry` to
+/// `entry + bend·(d_in + d_out)`.
+pub fn elbow_rotation_between(d_in: &Vector3<f64>, d_out: &Vector3<f64>) -> UnitQuaternion<f64> {
+    let (ex, ey) = (-d_out, *d_in);
+    let m = Matrix3::from_columns(&[ex, ey, ex.cross(&ey)]);
+    UnitQuaternion::from_rotation_matrix(&Rotation3::from_matrix_unchecked(m))
+}
 
 /// Unit radial direction in the plane z = 0 at arc angle ψ.
 fn e_rho(psi: f64) -> Vector3<f64> {

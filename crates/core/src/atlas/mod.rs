@@ -40,6 +40,7 @@ mod tests;
 mod trimesh;
 mod tube;
 
+pub use elbow::elbow_rotation_between;
 pub use mesh::MeshShape;
 pub use occupancy::{MAX_OUTLINE_CELLS, MIN_COMPONENT_CELLS, MIN_HOLE_CELLS};
 pub use plane::{MAX_PLANE_VERTICES, PlaneShape, Rings};

@@ -1,4 +1,4 @@
-//! The compact model: detect → propose → decide existence.
+//! The compact model: detect → propose → decide existence → trim → join pipe runs.
 
 use std::borrow::Cow;
 
@@ -6,6 +6,7 @@ use nalgebra::Point3;
 use rayon::prelude::*;
 
 use super::candidates::{CandidateSamples, Proposal, judged_samples, planned_samples, propose};
+use super::elbows::join_runs;
 use super::existence::{ExistenceOptions, decide_existence};
 use super::mdl::primitive_cost;
 use super::trim::{Cloud, Kept, Pricing, trim_overlaps};
@@ -162,23 +163,27 @@ pub fn compact_model(
         progress,
     )?;
     clock.nest("existence", &decision.times);
+    let cloud = Cloud {
+        points,
+        index,
+        spacing,
+    };
+    let pricing = Pricing {
+        cap,
+        noise,
+        point_weight: options.weights.map_or(1.0, |w| w[1]),
+    };
     let (primitives, existence) = trimmed_model(
-        Cloud {
-            points,
-            index,
-            spacing,
-        },
+        cloud,
         &detection,
         &proposals,
         &decision.exists,
         &decision.probability,
-        Pricing {
-            cap,
-            noise,
-            point_weight: options.weights.map_or(1.0, |w| w[1]),
-        },
+        pricing,
     );
     clock.lap("trim");
+    let (primitives, existence) = join_runs(cloud, primitives, existence, pricing, sample_spacing);
+    clock.lap("elbows");
     let existence_seconds: f64 = (clock.times.iter())
         .filter(|(stage, _)| !stage.starts_with("detect"))
         .map(|(_, t)| t)

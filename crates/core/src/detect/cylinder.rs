@@ -54,7 +54,7 @@ pub struct CylinderFit {
 }
 
 /// Two unit vectors completing `a` (unit) to a right-handed orthonormal basis.
-pub(super) fn perpendicular_basis(a: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
+pub(crate) fn perpendicular_basis(a: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
     let helper = if a.x.abs() < 0.6 {
         Vector3::x()
     } else {

@@ -7,7 +7,7 @@ use nalgebra::{Matrix3, Point3, Rotation3, Unit, UnitQuaternion, Vector3};
 use rand::{Rng, RngExt};
 use rand_distr::StandardNormal;
 
-use crate::atlas::{Shape, TriMesh};
+use crate::atlas::{Shape, TriMesh, elbow_rotation_between};
 use crate::check::non_negative;
 use crate::error::Remedy;
 use crate::{Error, PointCloud, Pose, Primitive, Result};
@@ -218,18 +218,13 @@ pub fn elbow_rotation(d_in: &Vector3<f64>, d_out: &Vector3<f64>) -> Result<UnitQ
             "elbow directions must be perpendicular unit axes, got {d_in:?} and {d_out:?}"
         )));
     }
-    // Local arc: from radial +x (tangent +y) to radial +y (tangent −x).
-    let (mut ex, mut ey) = (-d_out, *d_in);
-    let mut ez = ex.cross(&ey);
-    if ez.sum() < 0.0 {
-        // Same quarter torus traversed the other way: radial ends swapped.
-        (ex, ey) = (ey, ex);
-        ez = -ez;
+    // The same quarter torus traversed the other way (entering along −d_out, leaving
+    // along −d_in) when that makes the plane normal a positive axis.
+    if (-d_out).cross(d_in).sum() < 0.0 {
+        Ok(elbow_rotation_between(&-d_out, &-d_in))
+    } else {
+        Ok(elbow_rotation_between(d_in, d_out))
     }
-    let m = Matrix3::from_columns(&[ex, ey, ez]);
-    Ok(UnitQuaternion::from_rotation_matrix(
-        &Rotation3::from_matrix_unchecked(m),
-    ))
 }
 
 /// One area-uniform random point on `shape`'s surface, in its local frame.

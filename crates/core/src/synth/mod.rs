@@ -28,7 +28,7 @@
 //! rotation maps its local axes onto signed coordinate axes (12 orientations: plane
 //! normal ∈ {x, y, z} × 4 quadrants) with its torus centre on the lattice.
 
-mod common;
+pub(crate) mod common;
 mod depth;
 mod hallway;
 mod nine;
