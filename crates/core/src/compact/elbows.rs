@@ -18,11 +18,13 @@
 //! runs can give up, refined by golden section. Junctions are taken greedily, largest
 //! gain first, each run end at most once.
 
+use std::borrow::Cow;
+
 use nalgebra::{Point3, UnitQuaternion, Vector3};
 use rayon::prelude::*;
 
 use super::elbow_loss::Judge;
-use super::trim::{Cloud, Pricing};
+use super::trim::{Cloud, Kept, Pricing};
 use crate::atlas::elbow_rotation_between;
 use crate::primitive::Pose;
 use crate::{Primitive, Shape};
@@ -77,6 +79,11 @@ impl Run {
             radius: s * radius,
             rotation: p.pose.rotation,
         })
+    }
+
+    /// Its extent along the axis: `(−half, half)`.
+    fn whole(&self) -> (f64, f64) {
+        (-self.half, self.half)
     }
 
     /// The cylinder from axis parameter `lo` to `hi` (scene units along the axis from
@@ -214,17 +221,18 @@ pub(super) struct Scored {
     pub replaced: Vec<usize>,
 }
 
-/// `primitives` (with their `existence`) with elbows added between the runs they join,
-/// the runs cut to meet them, and the patches an elbow replaces dropped (module docs).
-/// `sample_spacing` is the existence decision's (scene units). An elbow's existence is
-/// the lower of its two runs'.
-pub fn join_runs(
+/// `kept` (with their `existence`) with elbows added between the runs they join, the
+/// runs cut to meet them, and the patches an elbow replaces dropped (module docs). An
+/// elbow's members are the points within the cap of it, its existence the lower of its
+/// two runs'. `sample_spacing` is the existence decision's (scene units).
+pub fn join_runs<'a>(
     cloud: Cloud,
-    primitives: Vec<Primitive>,
+    kept: Vec<Kept<'a>>,
     existence: Vec<f64>,
     pricing: Pricing,
     sample_spacing: f64,
-) -> (Vec<Primitive>, Vec<f64>) {
+) -> (Vec<Kept<'a>>, Vec<f64>) {
+    let primitives: Vec<Primitive> = kept.iter().map(|k| k.primitive.clone()).collect();
     let runs: Vec<Option<Run>> = primitives.iter().map(Run::of).collect();
     let pairs: Vec<[usize; 2]> = (0..runs.len())
         .flat_map(|i| (i + 1..runs.len()).map(move |j| [i, j]))
@@ -245,31 +253,56 @@ pub fn join_runs(
         })
         .collect();
     scored.sort_by(|a, b| (b.gain.total_cmp(&a.gain)).then(a.junction.ids.cmp(&b.junction.ids)));
-    apply(primitives, existence, &runs, scored)
+    let accepted = accept(&runs, scored);
+    let elbows: Vec<(Kept<'a>, f64)> = (accepted.elbows.iter())
+        .map(|(elbow, [i, j])| {
+            let members = Cow::Owned(members_of(cloud, elbow, pricing.cap));
+            let primitive = elbow.clone();
+            (
+                Kept { primitive, members },
+                existence[*i].min(existence[*j]),
+            )
+        })
+        .collect();
+    let mut model = Vec::with_capacity(kept.len() + elbows.len());
+    for (i, (k, p)) in kept.into_iter().zip(existence).enumerate() {
+        if accepted.dropped[i] {
+            continue;
+        }
+        let primitive = match &runs[i] {
+            Some(run) if accepted.extent[i] != run.whole() => run.cylinder(accepted.extent[i]),
+            _ => k.primitive,
+        };
+        model.push((Kept { primitive, ..k }, p));
+    }
+    model.extend(elbows);
+    model.into_iter().unzip()
 }
 
-/// The model with the scored junctions applied, the largest gains first: each run end
-/// and each replaced patch at most once, each run left at least [`MIN_RUN_RADII`] long.
-fn apply(
-    primitives: Vec<Primitive>,
-    existence: Vec<f64>,
-    runs: &[Option<Run>],
-    scored: Vec<Scored>,
-) -> (Vec<Primitive>, Vec<f64>) {
-    // Each run's extent along its axis, as cut so far.
-    let whole = |r: &Option<Run>| r.map_or((0.0, 0.0), |r| (-r.half, r.half));
-    let mut extent: Vec<(f64, f64)> = runs.iter().map(whole).collect();
+/// What [`accept`] decided: each run's extent along its axis, which primitives an elbow
+/// replaced, and the elbows with the two runs each joins.
+struct Accepted {
+    extent: Vec<(f64, f64)>,
+    dropped: Vec<bool>,
+    elbows: Vec<(Primitive, [usize; 2])>,
+}
+
+/// The scored junctions taken, the largest gains first: each run end and each replaced
+/// patch at most once, each run left at least [`MIN_RUN_RADII`] long.
+fn accept(runs: &[Option<Run>], scored: Vec<Scored>) -> Accepted {
+    let mut extent: Vec<(f64, f64)> = (runs.iter())
+        .map(|r| r.map_or((0.0, 0.0), |r| r.whole()))
+        .collect();
     let mut end_taken = vec![[false; 2]; runs.len()];
-    let mut dropped = vec![false; primitives.len()];
+    let mut dropped = vec![false; runs.len()];
     let mut elbows = Vec::new();
     for Scored {
-        junction,
+        junction: j,
         bend,
         replaced,
         ..
     } in scored
     {
-        let j = &junction;
         let side = |k: usize| usize::from(j.ends[k] > 0.0);
         let cuts = [0, 1].map(|k| {
             let (lo, hi) = extent[j.ids[k]];
@@ -292,24 +325,26 @@ fn apply(
         for &k in &replaced {
             dropped[k] = true;
         }
-        let p = existence[j.ids[0]].min(existence[j.ids[1]]);
-        elbows.push((j.elbow(bend), p));
+        elbows.push((j.elbow(bend), j.ids));
     }
-    let mut out = (Vec::new(), Vec::new());
-    for (i, (primitive, p)) in primitives.into_iter().zip(existence).enumerate() {
-        if dropped[i] {
-            continue;
-        }
-        let primitive = match &runs[i] {
-            Some(run) if extent[i] != whole(&runs[i]) => run.cylinder(extent[i]),
-            _ => primitive,
-        };
-        out.0.push(primitive);
-        out.1.push(p);
+    Accepted {
+        extent,
+        dropped,
+        elbows,
     }
-    out.0.extend(elbows.iter().map(|e| e.0.clone()));
-    out.1.extend(elbows.iter().map(|e| e.1));
-    out
+}
+
+/// The points within `cap` of `elbow`, ascending.
+fn members_of(cloud: Cloud, elbow: &Primitive, cap: f64) -> Vec<usize> {
+    let reach = elbow.bounding_radius() + cap;
+    let mut members: Vec<usize> = (cloud.index)
+        .within(&elbow.center(), reach * reach)
+        .into_iter()
+        .map(|(j, _)| j as usize)
+        .filter(|&j| elbow.distance(&cloud.points[j]) <= cap)
+        .collect();
+    members.sort_unstable();
+    members
 }
 
 #[cfg(test)]

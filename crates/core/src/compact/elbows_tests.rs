@@ -64,7 +64,14 @@ fn join(points: &[Point3<f64>], model: Vec<Primitive>) -> Vec<Primitive> {
         point_weight: 1.0,
     };
     let existence = vec![1.0; model.len()];
-    join_runs(cloud, model, existence, pricing, SPACING).0
+    let kept = (model.into_iter())
+        .map(|primitive| Kept {
+            primitive,
+            members: Cow::Owned(Vec::new()),
+        })
+        .collect();
+    let (kept, _) = join_runs(cloud, kept, existence, pricing, SPACING);
+    kept.into_iter().map(|k| k.primitive).collect()
 }
 
 #[test]

@@ -1,4 +1,4 @@
-//! The compact model: detect → propose → decide existence → trim → join pipe runs.
+//! The compact model: detect → propose → decide existence → join pipe runs → trim.
 
 use std::borrow::Cow;
 
@@ -173,17 +173,17 @@ pub fn compact_model(
         noise,
         point_weight: options.weights.map_or(1.0, |w| w[1]),
     };
-    let (primitives, existence) = trimmed_model(
-        cloud,
+    let (kept, existence) = kept_with_members(
+        points,
         &detection,
         &proposals,
         &decision.exists,
         &decision.probability,
-        pricing,
     );
-    clock.lap("trim");
-    let (primitives, existence) = join_runs(cloud, primitives, existence, pricing, sample_spacing);
+    let (kept, existence) = join_runs(cloud, kept, existence, pricing, sample_spacing);
     clock.lap("elbows");
+    let (primitives, existence) = trimmed(cloud, &kept, &existence, pricing);
+    clock.lap("trim");
     let existence_seconds: f64 = (clock.times.iter())
         .filter(|(stage, _)| !stage.starts_with("detect"))
         .map(|(_, t)| t)
@@ -209,33 +209,45 @@ pub fn compact_model(
     })
 }
 
-/// The candidates that exist (`exists`), with their existence `probability`, trimmed
-/// where a larger one covers them (`trim.rs`): the model's primitives and the existence
-/// of each.
-fn trimmed_model(
-    cloud: Cloud,
-    detection: &Detection,
+/// The candidates that exist (`exists`), each with the points it was built from, and
+/// the existence `probability` of each.
+fn kept_with_members<'a>(
+    points: &[Point3<f64>],
+    detection: &'a Detection,
     proposals: &[Proposal],
     exists: &[bool],
     probability: &[f64],
+) -> (Vec<Kept<'a>>, Vec<f64>) {
+    let mut members = kept_members(points, detection, proposals, exists);
+    (0..proposals.len())
+        .filter(|&i| exists[i])
+        .map(|i| {
+            let kept = Kept {
+                primitive: proposals[i].primitive.clone(),
+                members: std::mem::take(&mut members[i]),
+            };
+            (kept, probability[i])
+        })
+        .unzip()
+}
+
+/// `kept` trimmed where a larger one covers them (`trim.rs`): the model's primitives and
+/// the existence of each (a trimmed plane's parts share its `existence`).
+fn trimmed(
+    cloud: Cloud,
+    kept: &[Kept],
+    existence: &[f64],
     pricing: Pricing,
 ) -> (Vec<Primitive>, Vec<f64>) {
-    let mut members = kept_members(cloud.points, detection, proposals, exists);
-    let kept_ids: Vec<usize> = (0..proposals.len()).filter(|&i| exists[i]).collect();
-    let kept: Vec<Kept> = kept_ids
-        .iter()
-        .map(|&i| Kept {
-            primitive: proposals[i].primitive.clone(),
-            members: std::mem::take(&mut members[i]),
-        })
-        .collect();
-    let trimmed = trim_overlaps(cloud, &kept, pricing);
-    let (mut primitives, mut existence) = (Vec::new(), Vec::new());
-    for (&i, parts) in kept_ids.iter().zip(trimmed) {
-        existence.extend(parts.iter().map(|_| probability[i]));
+    let (mut primitives, mut probability) = (Vec::new(), Vec::new());
+    for (parts, &p) in trim_overlaps(cloud, kept, pricing)
+        .into_iter()
+        .zip(existence)
+    {
+        probability.extend(parts.iter().map(|_| p));
         primitives.extend(parts);
     }
-    (primitives, existence)
+    (primitives, probability)
 }
 
 /// The points each proposal that `exists` was built from (empty for the others): its
