@@ -37,7 +37,7 @@ const RIGHT_ANGLE_TOLERANCE_DEG: f64 = 10.0;
 const RADIUS_TOLERANCE: f64 = 0.15;
 
 /// Largest distance between the two axes at their closest approach, in tube radii.
-const MAX_AXIS_GAP_RADII: f64 = 0.5;
+const MAX_AXIS_GAP_RADII: f64 = 1.0;
 
 /// How far a run may reach past the corner `X`, in tube radii (a cylinder fitted through
 /// the outer wall of the bend).

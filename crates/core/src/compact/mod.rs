@@ -10,11 +10,13 @@
 //! | the nearest of a partial tube's samples, in constant time | `tube_lattice.rs` |
 //! | existence of the candidates | `existence.rs` |
 //! | planes trimmed where a larger primitive covers them | `trim.rs` |
+//! | one cylinder for a run found in collinear pieces | `collinear.rs` |
 //! | elbows joining pipe runs that meet at a right angle | `elbows.rs` |
 //! | the loss of a trial elbow | `elbow_loss.rs` |
 //! | the whole: [`compact_model`] | `model.rs` |
 
 mod candidates;
+mod collinear;
 mod elbow_loss;
 mod elbows;
 mod existence;

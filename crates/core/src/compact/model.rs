@@ -1,4 +1,5 @@
-//! The compact model: detect → propose → decide existence → join pipe runs → trim.
+//! The compact model: detect → propose → decide existence → merge collinear runs → join
+//! runs by elbows → trim.
 
 use std::borrow::Cow;
 
@@ -6,6 +7,7 @@ use nalgebra::Point3;
 use rayon::prelude::*;
 
 use super::candidates::{CandidateSamples, Proposal, judged_samples, planned_samples, propose};
+use super::collinear::merge_collinear;
 use super::elbows::join_runs;
 use super::existence::{ExistenceOptions, decide_existence};
 use super::mdl::primitive_cost;
@@ -89,7 +91,8 @@ pub struct CompactModel {
     /// Seconds spent proposing candidates and deciding their existence.
     pub existence_seconds: f64,
     /// Wall time of every step: `detect.*` ([`crate::detect::detect_timed`]),
-    /// `propose`, `free_space`, `samples`, `coefficients`, `solve`.
+    /// `propose`, `free_space`, `samples`, `existence.*` (coefficients, solve),
+    /// `elbows`, `collinear`, `trim`.
     pub times: StageTimes,
 }
 
@@ -182,6 +185,8 @@ pub fn compact_model(
     );
     let (kept, existence) = join_runs(cloud, kept, existence, pricing, sample_spacing);
     clock.lap("elbows");
+    let (kept, existence) = merge_collinear(cloud, kept, existence, pricing, sample_spacing);
+    clock.lap("collinear");
     let (primitives, existence) = trimmed(cloud, &kept, &existence, pricing);
     clock.lap("trim");
     let existence_seconds: f64 = (clock.times.iter())

@@ -56,7 +56,7 @@ use rayon::prelude::*;
 
 pub use model::SurfaceModel;
 
-pub(crate) use cylinder::perpendicular_basis;
+pub(crate) use cylinder::{CylinderFit, perpendicular_basis, refit_cylinder};
 pub(crate) use grow::{GrowParams, grow_regions};
 pub(crate) use noise::NoiseMap;
 pub(crate) use normals::Neighbourhoods;
