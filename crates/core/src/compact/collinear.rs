@@ -64,11 +64,9 @@ impl Piece {
     }
 }
 
-/// The one cylinder spanning pieces `p` and `q` when they lie on one axis (module docs),
-/// re-fitted (Levenberg–Marquardt, `detect/cylinder.rs`) to `points`, the pieces'
-/// members, where there are enough of them: two pieces' axes a degree or two apart
-/// average to an axis off both at the far ends. Its extent spans both pieces.
-fn merged(p: &Piece, q: &Piece, points: &[Point3<f64>]) -> Option<Primitive> {
+/// The cylinder spanning pieces `p` and `q` when they lie on one axis (module docs),
+/// with the length-weighted mean axis, centre line and radius; `None` otherwise.
+fn spanning(p: &Piece, q: &Piece) -> Option<CylinderFit> {
     let r = p.radius.max(q.radius);
     let q_axis = q.axis * p.axis.dot(&q.axis).signum();
     let off_axis = |c: &Point3<f64>, on: &Piece| (c - on.centre).cross(&on.axis).norm();
@@ -88,18 +86,24 @@ fn merged(p: &Piece, q: &Piece, points: &[Point3<f64>]) -> Option<Primitive> {
         (t - piece.length / 2.0, t + piece.length / 2.0)
     };
     let ((a0, a1), (b0, b1)) = (extent(p), extent(q));
-    let gap = (b0 - a1).max(a0 - b1);
-    if gap > total {
+    if (b0 - a1).max(a0 - b1) > total {
         return None;
     }
     let (lo, hi) = (a0.min(b0), a1.max(b1));
-    let start = CylinderFit {
+    Some(CylinderFit {
         point: centre + axis * ((lo + hi) / 2.0),
         axis,
         radius: p.radius * wp + q.radius * wq,
         length: hi - lo,
         rms: 0.0,
-    };
+    })
+}
+
+/// The one cylinder for pieces `p` and `q`: `start` ([`spanning`]) re-fitted
+/// (Levenberg–Marquardt, `detect/cylinder.rs`) to `points`, the pieces' members, where
+/// there are enough of them (two pieces' axes a degree or two apart average to an axis
+/// off both at the far ends), spanning both pieces.
+fn merged(p: &Piece, q: &Piece, start: CylinderFit, points: &[Point3<f64>]) -> Option<Primitive> {
     let fit = refit_cylinder(points, &start).unwrap_or(start);
     // The re-fitted axis, spanning both pieces' ends projected onto it.
     let ends = [p, q].map(|piece| {
@@ -138,6 +142,8 @@ pub fn merge_collinear<'a>(
         let mut scored: Vec<(f64, [usize; 2], Primitive, Vec<usize>)> = pairs
             .par_iter()
             .filter_map(|&[i, j]| {
+                let (p, q) = (pieces[i].as_ref()?, pieces[j].as_ref()?);
+                let start = spanning(p, q)?;
                 // The pieces' members on their own surfaces (a piece fitted into a bend
                 // holds points of the bend too).
                 let points: Vec<Point3<f64>> = ([i, j].iter())
@@ -146,7 +152,7 @@ pub fn merge_collinear<'a>(
                     .filter(|(k, y)| kept[*k].primitive.distance(y) <= pricing.cap)
                     .map(|(_, y)| y)
                     .collect();
-                let one = merged(pieces[i].as_ref()?, pieces[j].as_ref()?, &points)?;
+                let one = merged(p, q, start, &points)?;
                 let strips = strips_along(cloud, &kept, &one, [i, j], pricing.cap);
                 let swap = Swap {
                     cloud,
