@@ -47,8 +47,9 @@ const MAX_OVERSHOOT_RADII: f64 = 1.0;
 /// `B = 2r`).
 const MIN_BEND_RADII: f64 = 1.25;
 
-/// Largest bend radius searched beyond the runs' own gap to the corner, in tube radii
-/// (a 5D bend; common elbows have 2–3 radii).
+/// Largest bend radius searched beyond the runs' own gap to the corner, and the farthest
+/// a run may end short of the corner, in tube radii (a 5D bend; common elbows have 2–3
+/// radii).
 const MAX_BEND_RADII: f64 = 10.0;
 
 /// Shortest a run may become after its cut, in tube radii.
@@ -140,8 +141,10 @@ impl Junction {
         if (on_p - on_q).norm() > MAX_AXIS_GAP_RADII * r {
             return None;
         }
+        // Each run ends near the corner: at most a radius past it, at most the largest
+        // bend radius short of it.
         let gap = [s.abs() - p.half, t.abs() - q.half];
-        if gap.iter().any(|&g| g < -MAX_OVERSHOOT_RADII * r) {
+        if (gap.iter()).any(|&g| g < -MAX_OVERSHOOT_RADII * r || g > MAX_BEND_RADII * r) {
             return None;
         }
         let into = p.axis * s.signum();
