@@ -318,7 +318,9 @@ fn accept(runs: &[Option<Run>], scored: Vec<Scored>) -> Accepted {
                 && !dropped[id]
                 && cuts[k].1 - cuts[k].0 >= MIN_RUN_RADII * j.runs[k].radius
         });
-        if !fits || replaced.iter().any(|&k| dropped[k]) {
+        // A patch already dropped, or a run an accepted elbow joins, is not replaced.
+        let taken = |k: usize| dropped[k] || end_taken[k].contains(&true);
+        if !fits || replaced.iter().any(|&k| taken(k)) {
             continue;
         }
         for k in 0..2 {
