@@ -49,7 +49,7 @@ fn main() -> Result<(), Box<dyn std::error::Error>> {
         );
         if list {
             for p in prims {
-                let c = p.pose.to_scene(&primfit_core::na::Point3::origin());
+                let c = p.center();
                 println!(
                     "    {} {:.3} m² at {:.2?}: {:?}",
                     p.shape.kind().name(),

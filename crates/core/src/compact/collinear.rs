@@ -310,8 +310,6 @@ mod tests {
     use super::*;
     use crate::spatial::PointIndex;
     use nalgebra::UnitQuaternion;
-    use rand::SeedableRng;
-    use rand_chacha::ChaCha8Rng;
 
     /// Tube radius, noise σ and point spacing of the test pipe.
     const R: f64 = 0.1;
@@ -332,14 +330,7 @@ mod tests {
 
     /// Points (σ jitter) on the cylinders `truth`.
     fn points_on(truth: &[Primitive]) -> Vec<Point3<f64>> {
-        let mut rng = ChaCha8Rng::seed_from_u64(3);
-        (truth.iter())
-            .flat_map(|p| p.sample_surface(SPACING))
-            .map(|p| {
-                p + crate::synth::common::random_unit(&mut rng)
-                    * (SIGMA * crate::synth::common::gauss(&mut rng))
-            })
-            .collect()
+        crate::synth::jittered_samples(truth, SPACING, SIGMA, 3)
     }
 
     /// `model` after [`merge_collinear`], each primitive's members the points within

@@ -66,7 +66,7 @@ impl Judge<'_> {
             .iter()
             .map(|&(j, _)| self.cloud.points[j as usize])
             .collect();
-        let local = Local::new(self, &junction, &near, patches);
+        let local = Local::new(self, &junction, hi, &near, patches);
         let loss = |bend: f64| local.loss(self, &junction, bend);
         let bend = best_on_grid(lo, hi, &|b| loss(b).0);
         let (after, replace) = loss(bend);
@@ -138,9 +138,12 @@ struct Local<'a> {
 }
 
 impl<'a> Local<'a> {
+    /// The terms of `junction` for bend radii up to `bend_hi`, measured over the `near`
+    /// points, with `patches` (model indices) to keep or replace.
     fn new(
         judge: &Judge<'a>,
         junction: &Junction,
+        bend_hi: f64,
         near: &[Point3<f64>],
         patches: Vec<usize>,
     ) -> Self {
@@ -164,11 +167,11 @@ impl<'a> Local<'a> {
             cap,
             spacing: judge.spacing,
         };
-        // A cut leaves a run shorter than `reach − hi` from its far end unchanged.
-        let (_, hi) = junction.bend_range().unwrap_or((0.0, 0.0));
+        // A cut leaves a run shorter than `reach − bend_hi` from its far end unchanged.
         let rings = [0, 1].map(|k| {
             let old = 2.0 * junction.runs[k].half;
-            Rings::new(junction, k, old.min(junction.reach[k] - hi).max(0.0), &tree)
+            let from = old.min(junction.reach[k] - bend_hi).max(0.0);
+            Rings::new(junction, k, from, &tree)
         });
         let patch_price: f64 = (patches.iter())
             .map(|&k| tree.primitive_term(&prims[k]) + judge.cost(&prims[k]))

@@ -2,8 +2,6 @@
 
 use super::*;
 use crate::spatial::PointIndex;
-use rand::SeedableRng;
-use rand_chacha::ChaCha8Rng;
 
 /// Tube radius, bend radius, noise σ and point spacing of the test pipe.
 const R: f64 = 0.1;
@@ -36,14 +34,8 @@ fn l_pipe(overshoot: f64) -> (Vec<Point3<f64>>, Primitive, [Primitive; 2]) {
     let run = |p: &Primitive| Run::of(p).expect("a cylinder");
     let junction = Junction::of([0, 1], &run(&truth_runs[0]), &run(&truth_runs[1]));
     let elbow = junction.expect("the runs meet").elbow(BEND);
-    let mut rng = ChaCha8Rng::seed_from_u64(7);
-    let points = (truth_runs.iter().chain([&elbow]))
-        .flat_map(|p| p.sample_surface(SPACING))
-        .map(|p| {
-            p + crate::synth::common::random_unit(&mut rng)
-                * (SIGMA * crate::synth::common::gauss(&mut rng))
-        })
-        .collect();
+    let truth: Vec<Primitive> = truth_runs.iter().chain([&elbow]).cloned().collect();
+    let points = crate::synth::jittered_samples(&truth, SPACING, SIGMA, 7);
     let detected = [
         tube(start - a * 1.5, start + a * overshoot),
         tube(end - b * overshoot, end + b * 1.5),

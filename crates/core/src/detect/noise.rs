@@ -7,8 +7,8 @@
 //! ones. A [`NoiseMap`] cuts space into cubic cells of [`CELL_RADII`] neighbourhood
 //! radii, fixed to the cloud's lowest corner (so that moving a scan moves its cells with
 //! it, [`super::sample::voxel_of`]); a cell's σ is the floored estimate of
-//! [`crate::surface::noise_sigma`] (the median residual of the flattest half of its neighbourhoods, at least `s/√12`) over
-//! the points in it, if it holds at least [`MIN_CELL_SAMPLES`] of them; thinner cells
+//! [`crate::surface::noise_sigma`] (the median residual of the flattest half of its
+//! neighbourhoods, at least `s/√12`) over the points in it, if it holds at least [`MIN_CELL_SAMPLES`] of them; thinner cells
 //! take the global value. Taking the flattest half keeps creases and clutter in a cell
 //! from inflating its σ.
 //!

@@ -315,6 +315,23 @@ pub(crate) fn random_unit<R: Rng>(rng: &mut R) -> Vector3<f64> {
     }
 }
 
+/// Samples of `primitives` at `spacing` (scene units), each moved along a random
+/// direction by a normal draw of deviation `sigma`, from the RNG seeded with `seed`.
+#[cfg(test)]
+pub(crate) fn jittered_samples(
+    primitives: &[Primitive],
+    spacing: f64,
+    sigma: f64,
+    seed: u64,
+) -> Vec<Point3<f64>> {
+    use rand::SeedableRng;
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    (primitives.iter())
+        .flat_map(|p| p.sample_surface(spacing))
+        .map(|p| p + random_unit(&mut rng) * (sigma * gauss(&mut rng)))
+        .collect()
+}
+
 /// A standard normal draw.
 pub(crate) fn gauss<R: Rng>(rng: &mut R) -> f64 {
     rng.sample(StandardNormal)

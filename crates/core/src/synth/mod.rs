@@ -28,7 +28,7 @@
 //! rotation maps its local axes onto signed coordinate axes (12 orientations: plane
 //! normal ∈ {x, y, z} × 4 quadrants) with its torus centre on the lattice.
 
-pub(crate) mod common;
+mod common;
 mod depth;
 mod hallway;
 mod nine;
@@ -42,6 +42,8 @@ mod room_view;
 mod six;
 mod survey;
 
+#[cfg(test)]
+pub(crate) use common::jittered_samples;
 pub use common::{
     Density, LatticeHint, Misalignment, Noise, Scene, axis_rotation, elbow_rotation,
     sample_shape_local,
