@@ -12,12 +12,11 @@
 //! their summed lengths apart. The merged cylinder has the length-weighted mean axis,
 //! centre line and radius, and spans both extents.
 //!
-//! **Loss** (`Swap::gain`): the points within the cap of any primitive that changes pay
-//! their capped squared distance to the model, each changed primitive its samples'
-//! capped squared distances to the cloud and its description length; the primitives whose
-//! members all lie within the cap of the merged cylinder (strips that stood in for the
-//! stretch between the pieces) are kept or replaced, whichever costs less. Pairs are taken
-//! greedily, largest gain first, each cylinder once a pass, until a pass merges nothing.
+//! **Loss** ([`swap_gain`], `swap.rs`): a swap of the two pieces for the merged cylinder,
+//! with the primitives whose members all lie within the cap of the merged cylinder
+//! (strips that stood in for the stretch between the pieces) kept or replaced, whichever
+//! costs less. Pairs are taken greedily, largest gain first, each cylinder once a pass,
+//! until a pass merges nothing.
 
 use std::borrow::Cow;
 
@@ -25,6 +24,7 @@ use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
 use super::mdl::primitive_cost;
+use super::swap::{NearTree, SwapLoss};
 use super::trim::{Cloud, Kept, Pricing};
 use crate::detect::{CylinderFit, SurfaceModel, refit_cylinder};
 use crate::{Primitive, Shape};
@@ -154,12 +154,15 @@ pub fn merge_collinear<'a>(
                     .collect();
                 let one = merged(p, q, start, &points)?;
                 let strips = strips_along(cloud, &kept, &one, [i, j], pricing.cap);
-                let swap = Swap {
+                let (gain, replace) = swap_gain(
                     cloud,
                     pricing,
-                    spacing: sample_spacing,
-                };
-                let (gain, replace) = swap.gain(&kept, &[i, j], &one, &strips);
+                    sample_spacing,
+                    &kept,
+                    &[i, j],
+                    &one,
+                    &strips,
+                );
                 let replaced = if replace { strips } else { Vec::new() };
                 (gain > 0.0).then_some((gain, [i, j], one, replaced))
             })
@@ -228,81 +231,46 @@ fn strips_along(
         .collect()
 }
 
-/// What a swap of primitives is priced with.
-#[derive(Clone, Copy)]
-struct Swap<'a> {
-    cloud: Cloud<'a>,
+/// The loss saved (loss units) by replacing the primitives `old_ids` of `kept` with `new`,
+/// keeping or replacing `patch_ids` (whichever costs less), and whether they are replaced
+/// (`swap.rs`). The points measured are those within the cap of a changed primitive;
+/// each changed primitive's term is exact (one sample per `spacing`).
+fn swap_gain(
+    cloud: Cloud,
     pricing: Pricing,
-    /// The sample spacing of the primitive term (scene units).
     spacing: f64,
-}
-
-impl Swap<'_> {
-    /// The loss saved (squared scene units) by replacing the primitives `old` of `kept`
-    /// with `new`, keeping or replacing `patches` (whichever costs less), and whether
-    /// they are replaced. Only what changes is measured: the points within the cap of a
-    /// changed primitive, and the changed primitives' terms and description lengths.
-    fn gain(
-        &self,
-        kept: &[Kept],
-        old: &[usize],
-        new: &Primitive,
-        patches: &[usize],
-    ) -> (f64, bool) {
-        let (cloud, cap) = (self.cloud, self.pricing.cap);
-        let changed: Vec<&Primitive> = (old.iter().chain(patches))
-            .map(|&k| &kept[k].primitive)
-            .chain([new])
-            .collect();
-        let mut near: Vec<u32> = (changed.iter())
-            .flat_map(|p| {
-                cloud
-                    .index
-                    .within(&p.center(), (p.bounding_radius() + cap).powi(2))
-            })
-            .map(|(j, _)| j)
-            .collect();
-        near.sort_unstable();
-        near.dedup();
-        let nearest = |ids: &mut dyn Iterator<Item = &Primitive>, y: &Point3<f64>| {
-            ids.map(|p| p.distance(y)).fold(cap, f64::min)
-        };
-        // Per point in parallel, summed in order: the same gain on any number of threads.
-        let terms: Vec<[f64; 3]> = near
-            .par_iter()
-            .map(|&j| {
-                let y = &cloud.points[j as usize];
-                let rest = (0..kept.len()).filter(|k| !old.contains(k) && !patches.contains(k));
-                let d_rest = nearest(&mut rest.map(|k| &kept[k].primitive), y);
-                let d_old = nearest(&mut old.iter().map(|&k| &kept[k].primitive), y);
-                let d_patch = nearest(&mut patches.iter().map(|&k| &kept[k].primitive), y);
-                let d_new = new.distance(y).min(d_rest);
-                [d_rest.min(d_old).min(d_patch), d_new.min(d_patch), d_new].map(|d| d * d)
-            })
-            .collect();
-        let sums = terms
-            .iter()
-            .fold([0.0; 3], |s, t| [s[0] + t[0], s[1] + t[1], s[2] + t[2]]);
-        let old_price: f64 = old.iter().map(|&k| self.price(&kept[k].primitive)).sum();
-        let patch_price: f64 = patches
-            .iter()
-            .map(|&k| self.price(&kept[k].primitive))
-            .sum();
-        let w = self.pricing.point_weight;
-        let before = w * sums[0] + old_price + patch_price;
-        let (keep, replace) = (w * sums[1] + patch_price, w * sums[2]);
-        (before - self.price(new) - keep.min(replace), replace < keep)
-    }
-
-    /// A primitive's term (Σ over its samples of `min(d², cap²)`, `d` the distance to
-    /// the nearest point) and description length.
-    fn price(&self, p: &Primitive) -> f64 {
-        let (cloud, cap2) = (self.cloud, self.pricing.cap.powi(2));
-        let term: f64 = (p.sample_surface(self.spacing).iter())
-            .map(|x| cloud.index.nearest(x).map_or(cap2, |(_, d2)| d2.min(cap2)))
-            .sum();
-        term + primitive_cost(p, self.pricing.noise, cloud.points.len())
-    }
+    kept: &[Kept],
+    old_ids: &[usize],
+    new: &Primitive,
+    patch_ids: &[usize],
+) -> (f64, bool) {
+    let cap = pricing.cap;
+    let of =
+        |ids: &[usize]| -> Vec<&Primitive> { ids.iter().map(|&k| &kept[k].primitive).collect() };
+    let (old, patches) = (of(old_ids), of(patch_ids));
+    let mut near: Vec<u32> = (old.iter().chain(&patches).chain([&new]))
+        .flat_map(|p| {
+            cloud
+                .index
+                .within(&p.center(), (p.bounding_radius() + cap).powi(2))
+        })
+        .map(|(j, _)| j)
+        .collect();
+    near.sort_unstable();
+    near.dedup();
+    let points: Vec<Point3<f64>> = near.iter().map(|&j| cloud.points[j as usize]).collect();
+    let tree = NearTree::of_cloud(cloud.index, cap, spacing);
+    let price =
+        |p: &Primitive| tree.exact_term(p) + primitive_cost(p, pricing.noise, cloud.points.len());
+    let stay: Vec<usize> = (0..kept.len())
+        .filter(|k| !old_ids.contains(k) && !patch_ids.contains(k))
+        .collect();
+    let patch_price: f64 = patches.iter().map(|p| price(p)).sum();
+    let swap = SwapLoss::new(points, 1.0, &of(&stay), &patches, patch_price, pricing);
+    let old_price: f64 = old.iter().map(|p| price(p)).sum();
+    let before = swap.point_cost(&old).keep + old_price;
+    let (after, replace) = swap.point_cost(&[new]).best();
+    (before - price(new) - after, replace)
 }
 
 #[cfg(test)]

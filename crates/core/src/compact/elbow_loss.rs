@@ -1,12 +1,11 @@
-//! The loss of a trial elbow at one junction (`elbows.rs`), in the existence decision's
-//! own units (`model.rs`, `mdl.rs`): each point near the corner costs its capped squared
-//! distance to the model, each sample of a changed primitive (one per sample spacing)
-//! its capped squared distance to the cloud, and a primitive its description length.
+//! The loss of a trial elbow at one junction (`elbows.rs`): a swap (`swap.rs`) of the
+//! junction's two runs for the elbow and the runs cut to meet it, with the small
+//! primitives lying wholly within the junction (patches that stood in for the bend) kept
+//! or replaced.
 //!
 //! Only what a cut or an elbow can change is measured: the points within reach of the
-//! corner, the part of each run between its shortest and longest cut, the elbow, and the
-//! small primitives lying wholly within the junction (patches that stood in for the
-//! bend), which are either kept or replaced by the elbow, whichever costs less.
+//! corner, the part of each run between its shortest and longest cut (as rings of
+//! samples, so that each bend radius tried costs a lookup), and the elbow.
 
 use std::f64::consts::TAU;
 
@@ -15,22 +14,13 @@ use rayon::prelude::*;
 
 use super::elbows::{Junction, Run, Scored};
 use super::mdl::primitive_cost;
+use super::swap::{NearTree, SwapLoss, strided};
 use super::trim::{Cloud, Pricing};
 use crate::Primitive;
-use crate::spatial::{BoxTree, Hint, PointIndex};
-
-/// The most samples a trial elbow's or a patch's primitive term is estimated from (each
-/// weighted by the area it stands for, as `model.rs`'s `PRIMITIVE_TERM_SAMPLES`): a
-/// bend radius is tried some forty times per junction.
-const MAX_TERM_SAMPLES: f64 = 256.0;
 
 /// The most near points whose distances a trial is measured by; more are taken with a
 /// stride, each weighted by the points it stands for.
 const MAX_NEAR_POINTS: usize = 20_000;
-
-/// The most near points a junction's own box tree holds; beyond it the cloud's kd-tree
-/// answers (a dense scan's junction would otherwise copy much of the cloud per thread).
-const MAX_TREE_POINTS: usize = 200_000;
 
 /// Ratio between neighbouring bend radii of the coarse grid.
 const BEND_GRID_RATIO: f64 = 1.1;
@@ -66,14 +56,14 @@ impl Judge<'_> {
             .iter()
             .map(|&(j, _)| self.cloud.points[j as usize])
             .collect();
-        let local = Local::new(self, &junction, hi, &near, patches);
+        let local = Local::new(self, &junction, hi, &near, &patches);
         let loss = |bend: f64| local.loss(self, &junction, bend);
         let bend = best_on_grid(lo, hi, &|b| loss(b).0);
         let (after, replace) = loss(bend);
         Some(Scored {
             gain: local.before - after,
             bend,
-            replaced: if replace { local.patches } else { Vec::new() },
+            replaced: if replace { patches } else { Vec::new() },
             junction,
         })
     }
@@ -83,56 +73,12 @@ impl Judge<'_> {
     }
 }
 
-/// Nearest-point distances for samples within a junction's ball: a box tree of the near
-/// points (a trial elbow's samples beside the data are settled after a few tight boxes,
-/// where a kd-tree query opens many leaves, `spatial/box_tree.rs`), or the cloud's
-/// kd-tree where the near points are too many to copy.
-struct NearTree<'a> {
-    tree: Option<BoxTree>,
-    index: &'a PointIndex,
-    cap: f64,
-    spacing: f64,
-}
-
-impl NearTree<'_> {
-    /// `weight` × Σ over `samples` of `min(d², cap²)`, `d` the distance to the cloud:
-    /// the primitive term of samples within the junction's ball, where every point
-    /// within `cap` of them is near.
-    fn term(&self, samples: impl Iterator<Item = Point3<f64>>, weight: f64) -> f64 {
-        let mut hint = Hint::default();
-        let cap2 = self.cap * self.cap;
-        let mut d2 = |x: &Point3<f64>| match &self.tree {
-            Some(tree) => tree.nearest(x, &mut hint),
-            None => self.index.nearest(x).map_or(cap2, |(_, d2)| d2),
-        };
-        weight * samples.map(|x| d2(&x).min(cap2)).sum::<f64>()
-    }
-
-    /// The primitive term of `primitive` (within the junction's ball), from at most
-    /// [`MAX_TERM_SAMPLES`] samples each weighted by the area it stands for.
-    fn primitive_term(&self, primitive: &Primitive) -> f64 {
-        let coarse = (self.spacing).max((primitive.area() / MAX_TERM_SAMPLES).sqrt());
-        let weight = (coarse / self.spacing).powi(2);
-        self.term(primitive.sample_surface(coarse).into_iter(), weight)
-    }
-}
-
 /// The loss terms near one junction that do not depend on the bend radius.
 struct Local<'a> {
     tree: NearTree<'a>,
-    /// The near points the point term is measured on, each standing for `point_share`
-    /// near points.
-    points: Vec<Point3<f64>>,
-    point_share: f64,
-    /// Each measured point's distance (capped) to the primitives other than the runs
-    /// and the patches, and to the patches.
-    other: Vec<f64>,
-    patch: Vec<f64>,
-    patches: Vec<usize>,
+    swap: SwapLoss,
     /// Each run's primitive term where a cut can change it.
     rings: [Rings; 2],
-    /// The patches' primitive terms and description lengths.
-    patch_price: f64,
     /// The loss before any change.
     before: f64,
 }
@@ -145,58 +91,35 @@ impl<'a> Local<'a> {
         junction: &Junction,
         bend_hi: f64,
         near: &[Point3<f64>],
-        patches: Vec<usize>,
+        patches: &[usize],
     ) -> Self {
-        let cap = judge.pricing.cap;
-        let prims = judge.primitives;
-        let stride = near.len().div_ceil(MAX_NEAR_POINTS).max(1);
-        let points: Vec<Point3<f64>> = near.iter().step_by(stride).copied().collect();
-        let point_share = near.len() as f64 / points.len().max(1) as f64;
-        let nearest = |ids: &[usize], y: &Point3<f64>| {
-            (ids.iter().map(|&k| prims[k].distance(y))).fold(cap, f64::min)
-        };
-        let rest: Vec<usize> = (0..prims.len())
+        let (prims, cap) = (judge.primitives, judge.pricing.cap);
+        let tree = NearTree::of_near(near, judge.cloud.index, cap, judge.spacing);
+        let stay: Vec<&Primitive> = (0..prims.len())
             .filter(|k| !junction.ids.contains(k) && !patches.contains(k))
+            .map(|k| &prims[k])
             .collect();
-        let (other, patch): (Vec<f64>, Vec<f64>) = (points.par_iter())
-            .map(|y| (nearest(&rest, y), nearest(&patches, y)))
-            .unzip();
-        let tree = NearTree {
-            tree: (near.len() <= MAX_TREE_POINTS).then(|| BoxTree::new(near)),
-            index: judge.cloud.index,
-            cap,
-            spacing: judge.spacing,
-        };
+        let patches: Vec<&Primitive> = patches.iter().map(|&k| &prims[k]).collect();
+        let patch_price: f64 = (patches.iter())
+            .map(|p| tree.sampled_term(p) + judge.cost(p))
+            .sum();
+        let (points, share) = strided(near, MAX_NEAR_POINTS);
+        let swap = SwapLoss::new(points, share, &stay, &patches, patch_price, judge.pricing);
         // A cut leaves a run shorter than `reach − bend_hi` from its far end unchanged.
         let rings = [0, 1].map(|k| {
             let old = 2.0 * junction.runs[k].half;
             let from = old.min(junction.reach[k] - bend_hi).max(0.0);
             Rings::new(junction, k, from, &tree)
         });
-        let patch_price: f64 = (patches.iter())
-            .map(|&k| tree.primitive_term(&prims[k]) + judge.cost(&prims[k]))
-            .sum();
-        let old_runs = junction.ids.map(|id| &prims[id]);
-        let point_term: f64 = (points.iter().zip(other.iter().zip(&patch)))
-            .map(|(y, (&o, &p))| {
-                let d = (old_runs.iter().map(|r| r.distance(y))).fold(o.min(p), f64::min);
-                d * d
-            })
-            .sum();
         let run_terms: f64 = (0..2)
             .map(|k| rings[k].at(2.0 * junction.runs[k].half))
             .sum();
-        let w = judge.pricing.point_weight * point_share;
+        let old_runs = junction.ids.map(|id| &prims[id]);
         Local {
-            before: w * point_term + run_terms + patch_price,
+            before: swap.point_cost(&old_runs).keep + run_terms,
             tree,
-            points,
-            point_share,
-            other,
-            patch,
-            patches,
+            swap,
             rings,
-            patch_price,
         }
     }
 
@@ -205,23 +128,12 @@ impl<'a> Local<'a> {
     fn loss(&self, judge: &Judge, junction: &Junction, bend: f64) -> (f64, bool) {
         let elbow = junction.elbow(bend);
         let runs = [0, 1].map(|k| junction.cut_run(k, bend));
-        // Per point in parallel, summed in order: the same loss on any number of threads.
-        let terms: Vec<(f64, f64)> = (self.points.par_iter())
-            .zip(self.other.par_iter().zip(&self.patch))
-            .map(|(y, (&o, &p))| {
-                let to_elbow = elbow.distance(y).min(o);
-                let d = (runs.iter().map(|r| r.distance(y))).fold(to_elbow, f64::min);
-                (d.min(p).powi(2), d * d)
-            })
-            .collect();
-        let (kept, replaced) = terms.iter().fold((0.0, 0.0), |s, t| (s.0 + t.0, s.1 + t.1));
+        let (points, replace) = (self.swap).point_cost(&[&elbow, &runs[0], &runs[1]]).best();
         let run_terms: f64 = (0..2)
             .map(|k| self.rings[k].at(junction.reach[k] - bend))
             .sum();
-        let fixed = run_terms + self.tree.primitive_term(&elbow) + judge.cost(&elbow);
-        let w = judge.pricing.point_weight * self.point_share;
-        let (keep, replace) = (w * kept + self.patch_price, w * replaced);
-        (fixed + keep.min(replace), replace < keep)
+        let fixed = run_terms + self.tree.sampled_term(&elbow) + judge.cost(&elbow);
+        (fixed + points, replace)
     }
 }
 

@@ -10,6 +10,7 @@
 //! | the nearest of a partial tube's samples, in constant time | `tube_lattice.rs` |
 //! | existence of the candidates | `existence.rs` |
 //! | planes trimmed where a larger primitive covers them | `trim.rs` |
+//! | the loss of swapping a few primitives for others, where they change it | `swap.rs` |
 //! | one cylinder for a run found in collinear pieces | `collinear.rs` |
 //! | elbows joining pipe runs that meet at a right angle | `elbows.rs` |
 //! | the loss of a trial elbow | `elbow_loss.rs` |
@@ -23,6 +24,7 @@ mod existence;
 mod geometry;
 mod mdl;
 mod model;
+mod swap;
 mod trim;
 mod tube_lattice;
 
