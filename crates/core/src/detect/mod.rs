@@ -318,6 +318,7 @@ pub fn detect_timed(
         min_points,
         neighbours: grow.neighbours,
         quadric: &quadric,
+        cos_angle: &grow.cos_angle,
     };
     let parts: Vec<Part> = map_largest_first(regions, Vec::len, |ids| splitter.parts(ids))
         .into_iter()

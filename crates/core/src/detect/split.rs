@@ -6,24 +6,32 @@
 //! large against `R`, the crease's residual is not much above the noise either, so a
 //! region can creep across it in small steps (a mug and the table it stands on). The
 //! models then catch what growing let through: a region that no model explains is
-//! **split** by peeling its dominant plane.
+//! **split** by peeling its dominant plane or cylinder, whichever holds more of it (a
+//! table under the mug that grew onto it; a pipe run that grew into its bends, which
+//! a plane could only peel in strips).
 //!
-//! 1. **Candidates.** The tangent planes (point, normal) of [`PLANE_CANDIDATES`]
+//! 1. **Candidates.** Planes: the tangent planes (point, normal) of [`PLANE_CANDIDATES`]
 //!    samples spread over the flatter half of the region (by rank of flatness).
-//! 2. **Dominant plane.** The candidate with most samples within `t σ` of it, refitted
-//!    (least squares) on those samples, twice.
-//! 3. **Pieces.** The plane's inliers, cut into connected pieces over the growing
+//!    Cylinders: those fitted to the patches (two rings of neighbours) of
+//!    [`CYLINDER_CANDIDATES`] samples spread over the region, none wider than the
+//!    region's largest spread.
+//! 2. **Dominant surface.** The candidate with most samples within `t σ` of it (a
+//!    cylinder's with their normals within the growing angle of its own), refitted on
+//!    those samples, twice; the plane or the cylinder, whichever has more.
+//! 3. **Pieces.** The surface's inliers, cut into connected pieces over the growing
 //!    neighbourhoods; pieces of at least the smallest segment become parts (each
-//!    classified again: a plane, as a rule). The other samples, cut into connected
-//!    pieces as well, are classified or split in turn, down to [`MAX_SPLIT_DEPTH`].
-//! 4. A region whose dominant plane has no piece of the smallest segment's size is
+//!    classified again). The other samples, cut into connected pieces as well, are
+//!    classified or split in turn, down to [`MAX_SPLIT_DEPTH`].
+//! 4. A region whose dominant surface has no piece of the smallest segment's size is
 //!    **clutter**, as is what remains at the depth limit.
 
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
-use super::classify::classify;
+use super::classify::{classify, spreads};
+use super::cylinder::{CylinderFit, fit_cylinder, refit_cylinder};
 use super::merge::Part;
+use super::model::SurfaceModel;
 use super::normals::{FlatnessOrder, Neighbourhoods, median};
 use super::plane::Moments;
 use crate::schedule::map_largest_first;
@@ -36,6 +44,12 @@ pub const MAX_SPLIT_DEPTH: usize = 6;
 
 /// Least-squares refits of the dominant plane on its inliers.
 const PLANE_REFITS: usize = 2;
+
+/// Patches whose fitted cylinders are tried as the dominant cylinder of a region.
+pub const CYLINDER_CANDIDATES: usize = 8;
+
+/// Levenberg–Marquardt refits of the dominant cylinder on its inliers.
+const CYLINDER_REFITS: usize = 2;
 
 /// Everything the parts of one detection are judged by.
 #[derive(Debug, Clone, Copy)]
@@ -60,10 +74,42 @@ pub struct Splitter<'a> {
     /// ([`super::noise::quadric_residuals`], scene units): its noise without the
     /// curvature that inflates `nb.residual` on pipes and poles.
     pub quadric: &'a [f64],
+    /// Per sample: `cos` of the growing angle (a normal within it of a surface's is the
+    /// surface's).
+    pub cos_angle: &'a [f64],
 }
 
 /// A candidate dominant plane: its inlier count, a point on it and its unit normal.
 type CountedPlane = (usize, Point3<f64>, Vector3<f64>);
+
+/// The inliers of a dominant surface: membership over all samples, and their count.
+struct Peel {
+    member: Vec<bool>,
+    count: usize,
+}
+
+impl Peel {
+    fn of(samples: usize, inliers: &[usize]) -> Peel {
+        let mut member = vec![false; samples];
+        for &i in inliers {
+            member[i] = true;
+        }
+        Peel {
+            member,
+            count: inliers.len(),
+        }
+    }
+}
+
+/// The infinite cylinder of `fit`, as a model to measure distances to.
+fn cylinder_model(fit: &CylinderFit) -> SurfaceModel {
+    SurfaceModel::Cylinder {
+        point: fit.point,
+        axis: fit.axis,
+        radius: fit.radius,
+        length: fit.length,
+    }
+}
 
 /// Marks a sample outside the ids of [`Splitter::components`].
 const NOT_INSIDE: usize = usize::MAX;
@@ -107,7 +153,16 @@ impl Splitter<'_> {
             return;
         }
         let limit = self.tolerance * part.sigma;
-        let Some(inlier) = self.dominant_plane(&part.ids, limit) else {
+        // Peel whichever dominant surface holds more of the region: a plane (a table
+        // under a mug), or a cylinder (a pipe run that grew into its bends).
+        let plane = self.dominant_plane(&part.ids, limit);
+        let cylinder = self.dominant_cylinder(&part.ids, limit);
+        let peeled = match (plane, cylinder) {
+            (Some(p), Some(c)) if c.count > p.count => Some(c),
+            (Some(p), _) => Some(p),
+            (None, c) => c,
+        };
+        let Some(Peel { member: inlier, .. }) = peeled else {
             out.push(part);
             return;
         };
@@ -141,9 +196,9 @@ impl Splitter<'_> {
         out.extend(split.into_iter().flatten());
     }
 
-    /// Membership (over all samples) of the inliers of the dominant plane of `ids`
-    /// within `limit` (scene units), or `None` when no candidate plane exists.
-    fn dominant_plane(&self, ids: &[usize], limit: f64) -> Option<Vec<bool>> {
+    /// The inliers of the dominant plane of `ids` within `limit` (scene units), or `None`
+    /// when no candidate plane exists.
+    fn dominant_plane(&self, ids: &[usize], limit: f64) -> Option<Peel> {
         let mut by_flatness: Vec<usize> = ids.to_vec();
         self.flatness.sort(&mut by_flatness);
         let half = by_flatness.len().div_ceil(2);
@@ -186,11 +241,78 @@ impl Splitter<'_> {
             };
             inliers = within(&fit.point, &fit.normal);
         }
-        let mut member = vec![false; self.samples.len()];
-        for i in inliers {
-            member[i] = true;
+        Some(Peel::of(self.samples.len(), &inliers))
+    }
+
+    /// The inliers of the dominant cylinder of `ids` within `limit` (scene units), or
+    /// `None` when no candidate cylinder exists: the cylinders fitted to the patches (two
+    /// rings of neighbours) around [`CYLINDER_CANDIDATES`] samples spread over the
+    /// region, the one with most inliers refitted (Levenberg–Marquardt) on them, twice.
+    /// An inlier lies within `limit` of the surface with its normal within the growing
+    /// angle of the surface's. A cylinder wider than the region's largest spread is a
+    /// plane in disguise and is not tried.
+    fn dominant_cylinder(&self, ids: &[usize], limit: f64) -> Option<Peel> {
+        let pts: Vec<Point3<f64>> = ids.iter().map(|&i| self.samples[i]).collect();
+        let widest = spreads(&pts)[0];
+        let mut inside = vec![false; self.samples.len()];
+        for &i in ids {
+            inside[i] = true;
         }
-        Some(member)
+        // Within `limit` of the surface, and the normal within the growing angle of the
+        // surface's (a bend's start lies near its run's cylinder, tilted).
+        let within = |fit: &CylinderFit| -> Vec<usize> {
+            let model = cylinder_model(fit);
+            ids.iter()
+                .copied()
+                .filter(|&i| {
+                    let d = self.samples[i] - fit.point;
+                    let radial = (d - fit.axis * d.dot(&fit.axis)).normalize();
+                    model.distance(&self.samples[i]) <= limit
+                        && self.nb.normals[i].dot(&radial).abs() >= self.cos_angle[i]
+                })
+                .collect()
+        };
+        // The candidates are fitted and counted in parallel; the first with most wins.
+        let counted: Vec<Option<(usize, CylinderFit)>> = (0..CYLINDER_CANDIDATES)
+            .into_par_iter()
+            .map(|c| {
+                let seed = ids[c * ids.len() / CYLINDER_CANDIDATES];
+                let patch = self.patch(seed, &inside);
+                let ps: Vec<Point3<f64>> = patch.iter().map(|&i| self.samples[i]).collect();
+                let ns: Vec<Vector3<f64>> = patch.iter().map(|&i| self.nb.normals[i]).collect();
+                let fit = fit_cylinder(&ps, &ns).filter(|f| f.radius <= widest)?;
+                Some((within(&fit).len(), fit))
+            })
+            .collect();
+        let mut best: Option<(usize, CylinderFit)> = None;
+        for candidate in counted.into_iter().flatten() {
+            if best.is_none_or(|b| candidate.0 > b.0) {
+                best = Some(candidate);
+            }
+        }
+        let (_, mut fit) = best?;
+        let mut inliers = within(&fit);
+        for _ in 0..CYLINDER_REFITS {
+            let on: Vec<Point3<f64>> = inliers.iter().map(|&i| self.samples[i]).collect();
+            let Some(refit) = refit_cylinder(&on, &fit).filter(|f| f.radius <= widest) else {
+                break;
+            };
+            fit = refit;
+            inliers = within(&fit);
+        }
+        Some(Peel::of(self.samples.len(), &inliers))
+    }
+
+    /// The samples of `inside` among the neighbours of `seed`'s neighbours (ascending).
+    fn patch(&self, seed: usize, inside: &[bool]) -> Vec<usize> {
+        let mut patch: Vec<usize> = (self.nb.row(seed).iter())
+            .flat_map(|&j| self.nb.row(j as usize))
+            .map(|&i| i as usize)
+            .filter(|&i| inside[i])
+            .collect();
+        patch.sort_unstable();
+        patch.dedup();
+        patch
     }
 
     /// The connected pieces of `ids` (ascending) over the growing neighbourhoods, each
