@@ -31,7 +31,6 @@ use rayon::prelude::*;
 use super::classify::{classify, spreads};
 use super::cylinder::{CylinderFit, fit_cylinder, refit_cylinder};
 use super::merge::Part;
-use super::model::SurfaceModel;
 use super::normals::{FlatnessOrder, Neighbourhoods, median};
 use super::plane::Moments;
 use crate::schedule::map_largest_first;
@@ -98,16 +97,6 @@ impl Peel {
             member,
             count: inliers.len(),
         }
-    }
-}
-
-/// The infinite cylinder of `fit`, as a model to measure distances to.
-fn cylinder_model(fit: &CylinderFit) -> SurfaceModel {
-    SurfaceModel::Cylinder {
-        point: fit.point,
-        axis: fit.axis,
-        radius: fit.radius,
-        length: fit.length,
     }
 }
 
@@ -261,14 +250,14 @@ impl Splitter<'_> {
         // Within `limit` of the surface, and the normal within the growing angle of the
         // surface's (a bend's start lies near its run's cylinder, tilted).
         let within = |fit: &CylinderFit| -> Vec<usize> {
-            let model = cylinder_model(fit);
             ids.iter()
                 .copied()
                 .filter(|&i| {
                     let d = self.samples[i] - fit.point;
-                    let radial = (d - fit.axis * d.dot(&fit.axis)).normalize();
-                    model.distance(&self.samples[i]) <= limit
-                        && self.nb.normals[i].dot(&radial).abs() >= self.cos_angle[i]
+                    let off_axis = d - fit.axis * d.dot(&fit.axis);
+                    let r = off_axis.norm();
+                    (r - fit.radius).abs() <= limit
+                        && self.nb.normals[i].dot(&off_axis).abs() >= self.cos_angle[i] * r
                 })
                 .collect()
         };
