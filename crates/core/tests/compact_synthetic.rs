@@ -360,7 +360,7 @@ fn a_chain_of_pipes_is_cylinders_one_per_run_joined_by_elbows() {
 /// `pipe-20k` is seed 0) grow into their bends, so a region holds a run with its bends
 /// and no one model explains it. Peeling the region's dominant plane took a strip off
 /// the run and left the rest to clutter (a whole run missing on seeds 0, 1, 3 and 4,
-/// point→model 12–26 mm); peeling its dominant cylinder (`detect/split.rs`) gives
+/// point→model 19–26 mm); peeling its dominant cylinder (`detect/split.rs`) gives
 /// exactly one cylinder per run and one elbow per bend.
 #[test]
 fn long_pipe_runs_grown_into_their_bends_are_peeled_as_cylinders() {

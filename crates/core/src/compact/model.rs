@@ -1,5 +1,5 @@
-//! The compact model: detect → propose → decide existence → merge collinear runs → join
-//! runs by elbows → trim.
+//! The compact model: detect → propose → decide existence → join runs by elbows → merge
+//! collinear pieces → trim.
 
 use std::borrow::Cow;
 

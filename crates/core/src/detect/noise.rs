@@ -8,9 +8,9 @@
 //! radii, fixed to the cloud's lowest corner (so that moving a scan moves its cells with
 //! it, [`super::sample::voxel_of`]); a cell's σ is the floored estimate of
 //! [`crate::surface::noise_sigma`] (the median residual of the flattest half of its
-//! neighbourhoods, at least `s/√12`) over the points in it, if it holds at least [`MIN_CELL_SAMPLES`] of them; thinner cells
-//! take the global value. Taking the flattest half keeps creases and clutter in a cell
-//! from inflating its σ.
+//! neighbourhoods, at least `s/√12`) over the points in it, if it holds at least
+//! [`MIN_CELL_SAMPLES`] of them; thinner cells take the global value. Taking the
+//! flattest half keeps creases and clutter in a cell from inflating its σ.
 //!
 //! **Scale.** Stereo matching windows make the depth noise spatially correlated: a
 //! neighbourhood of a few spacings moves with the noise and sees only part of it. On the

@@ -81,25 +81,6 @@ pub struct Splitter<'a> {
 /// A candidate dominant plane: its inlier count, a point on it and its unit normal.
 type CountedPlane = (usize, Point3<f64>, Vector3<f64>);
 
-/// The inliers of a dominant surface: membership over all samples, and their count.
-struct Peel {
-    member: Vec<bool>,
-    count: usize,
-}
-
-impl Peel {
-    fn of(samples: usize, inliers: &[usize]) -> Peel {
-        let mut member = vec![false; samples];
-        for &i in inliers {
-            member[i] = true;
-        }
-        Peel {
-            member,
-            count: inliers.len(),
-        }
-    }
-}
-
 /// Marks a sample outside the ids of [`Splitter::components`].
 const NOT_INSIDE: usize = usize::MAX;
 
@@ -147,15 +128,19 @@ impl Splitter<'_> {
         let plane = self.dominant_plane(&part.ids, limit);
         let cylinder = self.dominant_cylinder(&part.ids, limit);
         let peeled = match (plane, cylinder) {
-            (Some(p), Some(c)) if c.count > p.count => Some(c),
+            (Some(p), Some(c)) if c.len() > p.len() => Some(c),
             (Some(p), _) => Some(p),
             (None, c) => c,
         };
-        let Some(Peel { member: inlier, .. }) = peeled else {
+        let Some(on) = peeled else {
             out.push(part);
             return;
         };
-        let (on, off): (Vec<usize>, Vec<usize>) = part.ids.iter().partition(|&&i| inlier[i]);
+        let mut inlier = vec![false; self.samples.len()];
+        for &i in &on {
+            inlier[i] = true;
+        }
+        let off: Vec<usize> = part.ids.iter().copied().filter(|&i| !inlier[i]).collect();
         let pieces: Vec<Vec<usize>> = self
             .components(&on)
             .into_iter()
@@ -185,9 +170,9 @@ impl Splitter<'_> {
         out.extend(split.into_iter().flatten());
     }
 
-    /// The inliers of the dominant plane of `ids` within `limit` (scene units), or `None`
-    /// when no candidate plane exists.
-    fn dominant_plane(&self, ids: &[usize], limit: f64) -> Option<Peel> {
+    /// The inliers (ascending) of the dominant plane of `ids` within `limit` (scene
+    /// units), or `None` when no candidate plane exists.
+    fn dominant_plane(&self, ids: &[usize], limit: f64) -> Option<Vec<usize>> {
         let mut by_flatness: Vec<usize> = ids.to_vec();
         self.flatness.sort(&mut by_flatness);
         let half = by_flatness.len().div_ceil(2);
@@ -230,17 +215,17 @@ impl Splitter<'_> {
             };
             inliers = within(&fit.point, &fit.normal);
         }
-        Some(Peel::of(self.samples.len(), &inliers))
+        Some(inliers)
     }
 
-    /// The inliers of the dominant cylinder of `ids` within `limit` (scene units), or
-    /// `None` when no candidate cylinder exists: the cylinders fitted to the patches (two
-    /// rings of neighbours) around [`CYLINDER_CANDIDATES`] samples spread over the
-    /// region, the one with most inliers refitted (Levenberg–Marquardt) on them, twice.
-    /// An inlier lies within `limit` of the surface with its normal within the growing
-    /// angle of the surface's. A cylinder wider than the region's largest spread is a
-    /// plane in disguise and is not tried.
-    fn dominant_cylinder(&self, ids: &[usize], limit: f64) -> Option<Peel> {
+    /// The inliers (ascending) of the dominant cylinder of `ids` within `limit` (scene
+    /// units), or `None` when no candidate cylinder exists: the cylinders fitted to the
+    /// patches (two rings of neighbours) around [`CYLINDER_CANDIDATES`] samples spread
+    /// over the region, the one with most inliers refitted (Levenberg–Marquardt) on them,
+    /// twice. An inlier lies within `limit` of the surface with its normal within the
+    /// growing angle of the surface's. A cylinder wider than the region's largest spread
+    /// is a plane in disguise and is not tried.
+    fn dominant_cylinder(&self, ids: &[usize], limit: f64) -> Option<Vec<usize>> {
         let pts: Vec<Point3<f64>> = ids.iter().map(|&i| self.samples[i]).collect();
         let widest = spreads(&pts)[0];
         let mut inside = vec![false; self.samples.len()];
@@ -289,7 +274,7 @@ impl Splitter<'_> {
             fit = refit;
             inliers = within(&fit);
         }
-        Some(Peel::of(self.samples.len(), &inliers))
+        Some(inliers)
     }
 
     /// The samples of `inside` among the neighbours of `seed`'s neighbours (ascending).
