@@ -26,6 +26,7 @@ use rayon::prelude::*;
 use super::elbow_loss::Judge;
 use super::trim::{Cloud, Kept, Pricing};
 use crate::atlas::elbow_rotation_between;
+use crate::detect::{CylinderFit, refit_cylinder};
 use crate::primitive::Pose;
 use crate::{Primitive, Shape};
 
@@ -54,6 +55,13 @@ const MAX_BEND_RADII: f64 = 10.0;
 
 /// Shortest a run may become after its cut, in tube radii.
 const MIN_RUN_RADII: f64 = 1.0;
+
+/// How far from an elbow's start a run's points are left out of its refit, in tube
+/// radii: the bend's start, which detection grew into the run, lies within it.
+const REFIT_CLEARANCE_RADII: f64 = 1.0;
+
+/// Fewest points a run is refitted on.
+const MIN_REFIT_POINTS: usize = 30;
 
 /// A cylinder of the model seen as a pipe run: its axis and extent (scene units).
 #[derive(Debug, Clone, Copy)]
@@ -235,15 +243,64 @@ pub fn join_runs<'a>(
     pricing: Pricing,
     sample_spacing: f64,
 ) -> (Vec<Kept<'a>>, Vec<f64>) {
-    let primitives: Vec<Primitive> = kept.iter().map(|k| k.primitive.clone()).collect();
-    let runs: Vec<Option<Run>> = primitives.iter().map(Run::of).collect();
+    let mut primitives: Vec<Primitive> = kept.iter().map(|k| k.primitive.clone()).collect();
+    let mut runs: Vec<Option<Run>> = primitives.iter().map(Run::of).collect();
+    let mut accepted = decide(cloud, &primitives, &runs, pricing, sample_spacing);
+    // Detection grows a run into the start of its bends, and the points there pull its
+    // fitted axis towards the inside of the bend, and the corner with it: the bend
+    // radius then comes out short by about 2.4 times the corner's shift (docs/compact.md).
+    // The runs an elbow joins are refitted on their straight part and decided again.
+    let refitted = refit_joined(cloud, &kept, &runs, &accepted.extent);
+    if refitted.iter().any(Option::is_some) {
+        for (i, run) in refitted.into_iter().enumerate() {
+            if let Some(run) = run {
+                primitives[i] = run.cylinder(run.whole());
+                runs[i] = Some(run);
+            }
+        }
+        accepted = decide(cloud, &primitives, &runs, pricing, sample_spacing);
+    }
+    let elbows: Vec<(Kept<'a>, f64)> = (accepted.elbows.iter())
+        .map(|(elbow, [i, j])| {
+            let members = Cow::Owned(members_of(cloud, elbow, pricing.cap));
+            let primitive = elbow.clone();
+            (
+                Kept { primitive, members },
+                existence[*i].min(existence[*j]),
+            )
+        })
+        .collect();
+    let mut model = Vec::with_capacity(kept.len() + elbows.len());
+    for (i, ((k, p), primitive)) in kept.into_iter().zip(existence).zip(primitives).enumerate() {
+        if accepted.dropped[i] {
+            continue;
+        }
+        let primitive = match &runs[i] {
+            Some(run) if accepted.extent[i] != run.whole() => run.cylinder(accepted.extent[i]),
+            _ => primitive,
+        };
+        model.push((Kept { primitive, ..k }, p));
+    }
+    model.extend(elbows);
+    model.into_iter().unzip()
+}
+
+/// The junctions of `runs` (the cylinders among `primitives`) worth an elbow, taken
+/// greedily ([`accept`]).
+fn decide(
+    cloud: Cloud,
+    primitives: &[Primitive],
+    runs: &[Option<Run>],
+    pricing: Pricing,
+    sample_spacing: f64,
+) -> Accepted {
     let pairs: Vec<[usize; 2]> = (0..runs.len())
         .flat_map(|i| (i + 1..runs.len()).map(move |j| [i, j]))
         .filter(|&[i, j]| runs[i].is_some() && runs[j].is_some())
         .collect();
     let judge = Judge {
         cloud,
-        primitives: &primitives,
+        primitives,
         pricing,
         spacing: sample_spacing,
     };
@@ -256,30 +313,63 @@ pub fn join_runs<'a>(
         })
         .collect();
     scored.sort_by(|a, b| (b.gain.total_cmp(&a.gain)).then(a.junction.ids.cmp(&b.junction.ids)));
-    let accepted = accept(&runs, scored);
-    let elbows: Vec<(Kept<'a>, f64)> = (accepted.elbows.iter())
-        .map(|(elbow, [i, j])| {
-            let members = Cow::Owned(members_of(cloud, elbow, pricing.cap));
-            let primitive = elbow.clone();
-            (
-                Kept { primitive, members },
-                existence[*i].min(existence[*j]),
-            )
+    accept(runs, scored)
+}
+
+/// Each run cut by an elbow (its `extent` not its whole), refitted on its members that
+/// lie within the extent and at least a tube radius clear of each cut end; `None` for
+/// the others and where too few points remain or the fit fails. The refitted run keeps
+/// its length, centred on the foot of its old centre on the new axis.
+fn refit_joined(
+    cloud: Cloud,
+    kept: &[Kept],
+    runs: &[Option<Run>],
+    extent: &[(f64, f64)],
+) -> Vec<Option<Run>> {
+    (0..runs.len())
+        .into_par_iter()
+        .map(|i| {
+            let run = runs[i].as_ref()?;
+            let (lo, hi) = extent[i];
+            let whole = run.whole();
+            if (lo, hi) == whole {
+                return None;
+            }
+            let clear = REFIT_CLEARANCE_RADII * run.radius;
+            let lo = if lo > whole.0 { lo + clear } else { lo };
+            let hi = if hi < whole.1 { hi - clear } else { hi };
+            let straight: Vec<Point3<f64>> = (kept[i].members.iter())
+                .map(|&j| cloud.points[j])
+                .filter(|p| (lo..=hi).contains(&(p - run.centre).dot(&run.axis)))
+                .collect();
+            if straight.len() < MIN_REFIT_POINTS {
+                return None;
+            }
+            let start = CylinderFit {
+                point: run.centre,
+                axis: run.axis,
+                radius: run.radius,
+                length: 2.0 * run.half,
+                rms: 0.0,
+            };
+            let fit = refit_cylinder(&straight, &start)?;
+            let axis = if fit.axis.dot(&run.axis) < 0.0 {
+                -fit.axis
+            } else {
+                fit.axis
+            };
+            let tilt = UnitQuaternion::rotation_between(&run.axis, &axis)?;
+            let centre = fit.point + axis * (run.centre - fit.point).dot(&axis);
+            let shape = Shape::Cylinder {
+                length: 2.0 * run.half,
+                radius: fit.radius,
+            };
+            Run::of(&Primitive::new(
+                shape,
+                Pose::new(tilt * run.rotation, centre.coords),
+            ))
         })
-        .collect();
-    let mut model = Vec::with_capacity(kept.len() + elbows.len());
-    for (i, (k, p)) in kept.into_iter().zip(existence).enumerate() {
-        if accepted.dropped[i] {
-            continue;
-        }
-        let primitive = match &runs[i] {
-            Some(run) if accepted.extent[i] != run.whole() => run.cylinder(accepted.extent[i]),
-            _ => k.primitive,
-        };
-        model.push((Kept { primitive, ..k }, p));
-    }
-    model.extend(elbows);
-    model.into_iter().unzip()
+        .collect()
 }
 
 /// What [`accept`] decided: each run's extent along its axis, which primitives an elbow
