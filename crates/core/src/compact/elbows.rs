@@ -17,6 +17,12 @@
 //! is the best of a geometric grid from [`MIN_BEND_RADII`] tube radii up to what both
 //! runs can give up, refined by golden section. Junctions are taken greedily, largest
 //! gain first, each run end at most once.
+//!
+//! **Runs refitted.** Detection grows a run into the start of its bends, whose points
+//! pull the fitted axis, and `X` with it, towards the inside of the bend; a corner
+//! moved inwards by `δ` gives `B` short by about `δ / (√2 − 1)` (docs/compact.md). So
+//! the runs an elbow cut are refitted on their points between the cuts, a tube radius
+//! clear of each, and the junctions decided again on the refitted runs.
 
 use std::borrow::Cow;
 
