@@ -358,7 +358,10 @@ fn refit_joined(
                 length: 2.0 * run.half,
                 rms: 0.0,
             };
-            let fit = refit_cylinder(&straight, &start)?;
+            // A refit that leaves the run's tube (its radius off by more than two joined
+            // runs' may differ) fitted something else: the run stays as it was.
+            let fit = refit_cylinder(&straight, &start)
+                .filter(|f| (f.radius - run.radius).abs() <= RADIUS_TOLERANCE * run.radius)?;
             let axis = if fit.axis.dot(&run.axis) < 0.0 {
                 -fit.axis
             } else {

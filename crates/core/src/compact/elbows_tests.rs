@@ -175,3 +175,55 @@ fn a_patch_that_stood_in_for_the_bend_is_replaced() {
     let kinds: Vec<&str> = model.iter().map(|p| p.shape.kind().name()).collect();
     assert_eq!(kinds, ["cylinder", "cylinder", "elbow"]);
 }
+
+/// A run cut at one end by an elbow is refitted on its points short of the cut: its
+/// axis, 1 cm off the points' tube as detection left it, comes back onto it. Points on
+/// a tube twice as wide are something else, and the run stays as it was.
+#[test]
+fn a_cut_run_is_refitted_on_its_straight_part_only_when_the_tube_is_its_own() {
+    let truth = tube(Point3::new(-2.0, 0.0, 0.0), Point3::new(0.0, 0.0, 0.0));
+    let mut wide = truth.clone();
+    wide.shape = Shape::Cylinder {
+        length: 2.0,
+        radius: 2.0 * R,
+    };
+    let detected = {
+        let mut p = truth.clone();
+        p.pose.translation.y += 0.01;
+        p
+    };
+    let run = Run::of(&detected).expect("a cylinder");
+    // Cut 0.5 m short of the run's end at x = 0 (the run's axis runs along +x).
+    let extent = [(-1.0, 0.5)];
+    for (surface, refitted) in [(&truth, true), (&wide, false)] {
+        let points =
+            crate::synth::jittered_samples(std::slice::from_ref(surface), SPACING, SIGMA, 3);
+        let index = PointIndex::new(&points);
+        let cloud = Cloud {
+            points: &points,
+            index: &index,
+            spacing: SPACING,
+        };
+        let kept = [Kept {
+            primitive: detected.clone(),
+            members: Cow::Owned((0..points.len()).collect()),
+        }];
+        let out = refit_joined(cloud, &kept, &[Some(run)], &extent);
+        assert_eq!(
+            out[0].is_some(),
+            refitted,
+            "refitted on {:?}",
+            surface.shape
+        );
+        if let Some(new) = out[0] {
+            let off = new.centre.y.hypot(new.centre.z);
+            assert!(off < 0.002, "axis {off} m off the tube");
+            assert!(new.axis.x.abs() > 0.9999, "axis {:?}", new.axis);
+            assert!(
+                (new.half - run.half).abs() < 1e-12,
+                "the run keeps its length"
+            );
+            assert!((new.radius - R).abs() < 0.002, "radius {}", new.radius);
+        }
+    }
+}
