@@ -239,7 +239,8 @@ pub(super) struct Scored {
 }
 
 /// `kept` (with their `existence`) with elbows added between the runs they join, the
-/// runs cut to meet them, and the patches an elbow replaces dropped (module docs). An
+/// runs refitted on their straight parts and cut to meet them, and the patches an elbow
+/// replaces dropped (module docs). An
 /// elbow's members are the points within the cap of it, its existence the lower of its
 /// two runs'. `sample_spacing` is the existence decision's (scene units).
 pub fn join_runs<'a>(
