@@ -196,12 +196,14 @@ impl Rings {
 
 /// The minimiser of `loss` over a geometric grid on `[lo, hi]` ([`BEND_GRID_RATIO`]),
 /// refined by golden section between the best point's neighbours.
-fn best_on_grid(lo: f64, hi: f64, loss: &impl Fn(f64) -> f64) -> f64 {
+fn best_on_grid(lo: f64, hi: f64, loss: &(impl Fn(f64) -> f64 + Sync)) -> f64 {
     let steps = ((hi / lo).ln() / BEND_GRID_RATIO.ln()).ceil().max(1.0) as usize;
     let grid: Vec<f64> = (0..=steps)
         .map(|i| lo * (hi / lo).powf(i as f64 / steps as f64))
         .collect();
-    let values: Vec<f64> = grid.iter().map(|&b| loss(b)).collect();
+    // The grid's values side by side: each is a short pass over the near points, too
+    // short to share among threads on its own.
+    let values: Vec<f64> = grid.par_iter().map(|&b| loss(b)).collect();
     let best = (0..grid.len())
         .min_by(|&a, &b| values[a].total_cmp(&values[b]))
         .unwrap_or(0);
