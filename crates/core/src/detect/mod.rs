@@ -348,6 +348,7 @@ pub fn detect_timed(
         min_points,
         cos_angle: angle.cos(),
         reach: radius,
+        neighbours: grow.neighbours,
     }
     .absorb(points, &mut detection);
     clock.lap("leftovers");
