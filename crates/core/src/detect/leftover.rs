@@ -21,7 +21,9 @@
 //!    neighbourhood residual where that is larger.
 //! 3. A piece a cylinder or a sphere explains becomes a segment. A piece only a plane
 //!    explains does not: a planar leftover is a crease band or a fragment beside a
-//!    plane that already explains it.
+//!    plane that already explains it. A piece no one model explains (a thin pipe with
+//!    its bend or a tee) is split as a grown region is ([`super::split`]) on its own
+//!    points, and the cylinders and spheres among its parts become segments.
 //! 4. The curved segments, old and new, are merged by the rule of [`super::merge`]:
 //!    a tube cut into pieces (where a few of its points joined no piece) is one.
 //!
@@ -92,7 +94,8 @@ pub(super) struct Leftovers {
     pub spheres: bool,
     /// Smallest piece, in points.
     pub min_points: usize,
-    /// Cosine of the largest angle between the axes of merged cylinders.
+    /// Cosine of the largest angle between the axes of merged cylinders; also the
+    /// growing angle a split piece's parts are judged by.
     pub cos_angle: f64,
     /// The detection's median neighbourhood radius (scene units): a segment narrower
     /// than this was classified from neighbourhoods wider than itself.
