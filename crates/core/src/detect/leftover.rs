@@ -452,14 +452,16 @@ mod tests {
         let index = PointIndex::new(&points);
         // The room's spacing, set by its sparser walls: the piece is linked whole.
         let spacing = 2.0 * index.median_spacing(&points, points.len()).unwrap();
+        // The detection's defaults, at the smallest growing angle (the room's).
+        let k = super::super::DEFAULT_NEIGHBOURS;
         let judge = Leftovers {
             spacing,
-            k: crate::surface::DEFAULT_NEIGHBOURS,
+            k,
             sigma: 0.005,
             tolerance: super::super::DEFAULT_TOLERANCE,
             spheres: false,
-            min_points: 64,
-            cos_angle: 5f64.to_radians().cos(),
+            min_points: super::super::MIN_SEGMENT_NEIGHBOURHOODS * k,
+            cos_angle: super::super::MIN_ANGLE_DEG.to_radians().cos(),
             reach: 0.05,
             neighbours: super::super::DEFAULT_GROW_NEIGHBOURS,
         };
