@@ -33,7 +33,7 @@
 use nalgebra::Point3;
 use rayon::prelude::*;
 
-use super::classify::{classify, spreads};
+use super::classify::{Oriented, classify, spreads};
 use super::merge::{Part, merge_parts};
 use super::noise::quadric_residuals;
 use super::normals::{FlatnessOrder, Neighbourhoods, median};
@@ -259,14 +259,13 @@ impl Leftovers {
         let residual = median(&mut nb.residual.clone()).unwrap_or(0.0);
         let sigma = self.sigma.max(residual);
         // A fine σ of 0: the curved models are always tried.
-        let c = classify(
-            &pts,
-            &nb.normals,
-            &own,
-            (sigma, 0.0),
-            self.tolerance,
-            self.spheres,
-        );
+        let cos_angle = vec![self.cos_angle; pts.len()];
+        let surface = Oriented {
+            points: &pts,
+            normals: &nb.normals,
+            cos_angle: &cos_angle,
+        };
+        let c = classify(surface, &own, (sigma, 0.0), self.tolerance, self.spheres);
         match c.model {
             Some(SurfaceModel::Plane { .. }) => Vec::new(),
             Some(model) => vec![Segment {
@@ -274,7 +273,7 @@ impl Leftovers {
                 model,
                 rms: c.rms,
             }],
-            None if split => self.split_curved(&pts, &nb, sigma, own, &ids),
+            None if split => self.split_curved(surface, &nb, sigma, own, &ids),
             None => Vec::new(),
         }
     }
@@ -284,13 +283,13 @@ impl Leftovers {
     /// `pts` (`ids` in the cloud) split as grown regions are ([`Splitter`]), at `sigma`.
     fn split_curved(
         &self,
-        pts: &[Point3<f64>],
+        surface: Oriented,
         nb: &Neighbourhoods,
         sigma: f64,
         own: Vec<usize>,
         ids: &[usize],
     ) -> Vec<Segment> {
-        let n = pts.len();
+        let (pts, n) = (surface.points, surface.points.len());
         let splitter = Splitter {
             samples: pts,
             nb,
@@ -301,7 +300,7 @@ impl Leftovers {
             min_points: self.min_points,
             neighbours: self.neighbours,
             quadric: &quadric_residuals(pts, nb),
-            cos_angle: &vec![self.cos_angle; n],
+            cos_angle: surface.cos_angle,
         };
         (splitter.parts(own).into_iter())
             .filter_map(|part| match part.model? {

@@ -28,7 +28,7 @@
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
-use super::classify::{classify, spreads};
+use super::classify::{Oriented, classify, spreads};
 use super::cylinder::{CylinderFit, fit_cylinder, refit_cylinder};
 use super::merge::Part;
 use super::normals::{FlatnessOrder, Neighbourhoods, median};
@@ -96,14 +96,12 @@ impl Splitter<'_> {
     /// The part of `ids` with its model (`None`: clutter).
     fn part(&self, ids: Vec<usize>) -> Part {
         let (sigma, fine) = self.noise(&ids);
-        let c = classify(
-            self.samples,
-            &self.nb.normals,
-            &ids,
-            (sigma, fine),
-            self.tolerance,
-            self.spheres,
-        );
+        let surface = Oriented {
+            points: self.samples,
+            normals: &self.nb.normals,
+            cos_angle: self.cos_angle,
+        };
+        let c = classify(surface, &ids, (sigma, fine), self.tolerance, self.spheres);
         let moments = Moments::of(self.samples, &ids);
         Part {
             ids,
