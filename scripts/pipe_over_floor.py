@@ -15,6 +15,8 @@ import argparse
 
 import numpy as np
 
+import ascii_ply
+
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -58,10 +60,7 @@ def main():
         parts.append(np.array([-0.5, -1, 0]) + a[:, :1] * [4, 0, 0] + a[:, 1:] * [0, 3, 0])
     p = np.vstack(parts)
     p += rng.normal(scale=args.noise, size=p.shape)
-    with open(args.output, "w") as f:
-        f.write("ply\nformat ascii 1.0\nelement vertex %d\n" % len(p))
-        f.write("property float x\nproperty float y\nproperty float z\nend_header\n")
-        np.savetxt(f, p, fmt="%.5f")
+    ascii_ply.write(args.output, p)
     print(f"{args.output}: {len(p)} points")
 
 

@@ -15,6 +15,8 @@ import argparse
 
 import numpy as np
 
+import ascii_ply
+
 
 def main():
     ap = argparse.ArgumentParser(description=__doc__.splitlines()[0])
@@ -63,10 +65,7 @@ def main():
     tube([4.7, y0, 0.0], [0, 0, 1], r, 1.2 - r, 3000)  # its branch to the floor
     points = np.vstack(parts)
     points += rng.normal(0, 0.005, points.shape)
-    with open(args.output, "w") as f:
-        f.write("ply\nformat ascii 1.0\nelement vertex %d\n" % len(points))
-        f.write("property float x\nproperty float y\nproperty float z\nend_header\n")
-        np.savetxt(f, points, fmt="%.5f")
+    ascii_ply.write(args.output, points)
     print(f"wrote {args.output}: {len(points)} points")
 
 

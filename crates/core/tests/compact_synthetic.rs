@@ -421,3 +421,52 @@ fn long_pipe_runs_grown_into_their_bends_are_peeled_as_cylinders() {
         assert!(p2m < PIPE_MAX_SIGMAS * sigma, "seed {seed}: {p2m}");
     }
 }
+
+/// A floor sampled 2.5 times more sparsely than the pipe above it (3 cm against 1.2 cm;
+/// the pipe's points set the scan's median spacing): both exist. The primitive term
+/// charged the floor its sample distances at the pipe's spacing (about 10 times what its
+/// points save), and the fit returned nothing at all.
+#[test]
+fn a_sparse_floor_under_a_dense_pipe_is_kept() {
+    use rand::{RngExt, SeedableRng};
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::StandardNormal;
+
+    let mut rng = ChaCha8Rng::seed_from_u64(1);
+    let noise = |rng: &mut ChaCha8Rng| 0.002 * rng.sample::<f64, _>(StandardNormal);
+    let mut points = Vec::new();
+    for _ in 0..(12.0 / (0.03 * 0.03)) as usize {
+        let (x, y) = (4.0 * rng.random::<f64>(), 3.0 * rng.random::<f64>());
+        points.push(nalgebra::Point3::new(x, y, noise(&mut rng)));
+    }
+    let (radius, length) = (0.1, 2.0);
+    for _ in 0..(std::f64::consts::TAU * radius * length / (0.012 * 0.012)) as usize {
+        let (a, t) = (
+            std::f64::consts::TAU * rng.random::<f64>(),
+            rng.random::<f64>(),
+        );
+        let r = radius + noise(&mut rng);
+        points.push(nalgebra::Point3::new(
+            1.0 + length * t,
+            1.5 + r * a.cos(),
+            1.0 + r * a.sin(),
+        ));
+    }
+    let index = PointIndex::new(&points);
+    let model = compact_model(&points, &index, &CompactOptions::default(), &Silent).unwrap();
+    let kinds: Vec<&str> = model
+        .primitives
+        .iter()
+        .map(|p| p.shape.kind().name())
+        .collect();
+    assert_eq!(kinds.len(), 2, "{kinds:?}");
+    assert!(kinds.contains(&"plane"), "{kinds:?}");
+    let tube = model.primitives.iter().find_map(|p| match p.shape {
+        Shape::Cylinder { radius, .. } => Some(radius),
+        _ => None,
+    });
+    assert!(
+        tube.is_some_and(|r| (r - radius).abs() < 0.05 * radius),
+        "{tube:?}"
+    );
+}

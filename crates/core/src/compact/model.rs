@@ -6,7 +6,9 @@ use std::borrow::Cow;
 use nalgebra::Point3;
 use rayon::prelude::*;
 
-use super::candidates::{CandidateSamples, Proposal, judged_samples, planned_samples, propose};
+use super::candidates::{
+    CandidateSamples, Proposal, judged_samples, planned_samples, propose, sparse_surface_scale,
+};
 use super::collinear::merge_collinear;
 use super::elbows::join_runs;
 use super::existence::{ExistenceOptions, decide_existence};
@@ -146,13 +148,15 @@ pub fn compact_model(
         .par_iter()
         .map(|p| {
             let segment = &detection.segments[p.segment].points;
-            judged_samples(
+            let mut judged = judged_samples(
                 &p.primitive,
                 segment,
                 points,
                 sample_spacing,
                 PRIMITIVE_TERM_SAMPLES,
-            )
+            );
+            judged.weight *= sparse_surface_scale(points, index, segment, spacing);
+            judged
         })
         .collect();
     clock.lap("samples");
