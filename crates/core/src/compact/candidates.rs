@@ -169,10 +169,11 @@ pub struct CandidateSamples {
     /// Surface samples (scene coordinates).
     pub points: Vec<Point3<f64>>,
     /// The weight of each sample's squared distance in the primitive term: the area it
-    /// stands for over `s²`, `s` the sample spacing of the fit (1: sampled at `s`); the
-    /// compact model scales it by [`sparse_surface_scale`] for a surface sparser than
-    /// the scan.
+    /// stands for over `s²`, `s` the sample spacing of the fit (1: sampled at `s`).
     pub weight: f64,
+    /// The factor on the whole primitive term: [`sparse_surface_scale`] for a surface
+    /// sparser than the scan, 1 otherwise.
+    pub sparse_scale: f64,
     /// Whether the samples cover only part of the surface (a tube seen from one side):
     /// the candidate is then judged by them in the point term too.
     pub partial: bool,
@@ -207,6 +208,7 @@ pub fn judged_samples(
     CandidateSamples {
         points,
         weight: (own / spacing).powi(2),
+        sparse_scale: 1.0,
         partial,
         tube,
     }

@@ -89,7 +89,7 @@ pub fn decide_existence(
         Coefficients::build_indexed(points, index, &geometry, chamfer, progress)?;
     clock.lap("coefficients");
     for ((g, c), s) in coefficients.g.iter_mut().zip(cost).zip(samples) {
-        *g = *g * s.weight + c / chamfer.primitive_weight;
+        *g = *g * s.weight * s.sparse_scale + c / chamfer.primitive_weight;
     }
     let kept: Vec<usize> = (0..n).collect();
     let mut exists = vec![false; n];
@@ -127,6 +127,7 @@ mod tests {
             .map(|p| CandidateSamples {
                 points: p.sample_surface(spacing),
                 weight: 1.0,
+                sparse_scale: 1.0,
                 partial: false,
                 tube: None,
             })

@@ -155,7 +155,7 @@ pub fn compact_model(
                 sample_spacing,
                 PRIMITIVE_TERM_SAMPLES,
             );
-            judged.weight *= sparse_surface_scale(points, index, segment, spacing);
+            judged.sparse_scale = sparse_surface_scale(points, index, segment, spacing);
             judged
         })
         .collect();

@@ -160,10 +160,7 @@ pub fn classify(
             && c.rms <= limit
             && c.length >= TUBE_MIN_ASPECT * c.radius
             && surface.normals_agree(ids, |p| {
-                let d = p - c.point;
-                (d - c.axis * d.dot(&c.axis))
-                    .try_normalize(0.0)
-                    .unwrap_or_default()
+                c.off_axis(p).try_normalize(0.0).unwrap_or_default()
             })
     };
     // The two curved fits are independent: on two threads the sphere's runs beside the

@@ -53,6 +53,15 @@ pub struct CylinderFit {
     pub rms: f64,
 }
 
+impl CylinderFit {
+    /// The perpendicular from the axis to `p` (scene units): its length is `p`'s distance
+    /// from the axis, its direction the surface normal there.
+    pub fn off_axis(&self, p: &Point3<f64>) -> Vector3<f64> {
+        let d = p - self.point;
+        d - self.axis * d.dot(&self.axis)
+    }
+}
+
 /// Two unit vectors completing `a` (unit) to a right-handed orthonormal basis.
 pub(crate) fn perpendicular_basis(a: &Vector3<f64>) -> (Vector3<f64>, Vector3<f64>) {
     let helper = if a.x.abs() < 0.6 {

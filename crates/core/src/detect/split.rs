@@ -236,8 +236,7 @@ impl Splitter<'_> {
             ids.iter()
                 .copied()
                 .filter(|&i| {
-                    let d = self.samples[i] - fit.point;
-                    let off_axis = d - fit.axis * d.dot(&fit.axis);
+                    let off_axis = fit.off_axis(&self.samples[i]);
                     let r = off_axis.norm();
                     (r - fit.radius).abs() <= limit
                         && self.nb.normals[i].dot(&off_axis).abs() >= self.cos_angle[i] * r
