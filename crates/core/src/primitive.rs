@@ -9,6 +9,9 @@ use serde_json::Value;
 use crate::atlas::{MeshShape, PlaneShape, Shape, ShapeKind, TriMesh};
 use crate::{Error, Result, check};
 
+/// Relative slack of the height bound of [`Primitive::distance_within`] (dimensionless).
+const HEIGHT_BOUND_SLACK: f64 = 1e-9;
+
 /// A similarity transform from a shape's local frame to scene coordinates:
 /// `x_scene = scale · R · x_local + translation`. Serde reads and writes it as DESIGN §3
 /// JSON (see [`Pose::from_json`]).
@@ -197,6 +200,23 @@ impl Primitive {
     /// Euclidean distance from a scene point to the surface.
     pub fn distance(&self, p: &Point3<f64>) -> f64 {
         self.pose.scale * self.shape.distance(&self.pose.to_local(p))
+    }
+    /// [`Primitive::distance`], or `None` when it is certainly more than `bound` (scene
+    /// units): a flat shape (square, disk, plane) lies in its local plane `z = 0`, so no
+    /// point of it is nearer than the point's height over that plane, which rules most
+    /// of them out before their outline is searched.
+    pub fn distance_within(&self, p: &Point3<f64>, bound: f64) -> Option<f64> {
+        let local = self.pose.to_local(p);
+        let flat = matches!(
+            self.shape,
+            Shape::Square { .. } | Shape::Disk { .. } | Shape::Plane(_)
+        );
+        // The height, shrunk by far more than its rounding, stays below the distance
+        // computed from the same local point.
+        if flat && self.pose.scale * local.z.abs() * (1.0 - HEIGHT_BOUND_SLACK) > bound {
+            return None;
+        }
+        Some(self.pose.scale * self.shape.distance(&local))
     }
     /// Closest surface point to a scene point, in scene coordinates.
     pub fn closest_point(&self, p: &Point3<f64>) -> Point3<f64> {

@@ -193,3 +193,54 @@ fn scaled_poses_keep_hit_depth_in_scene_units_and_misses_are_none() {
     let nan = Point3::new(f64::NAN, 0.0, 0.0);
     assert!(sphere.first_hit(&nan, &Vector3::x()).is_none());
 }
+
+#[test]
+fn distance_within_rules_out_only_what_lies_beyond_the_bound() {
+    let p2 = |x: f64, y: f64| nalgebra::Point2::new(x, y);
+    let outline = vec![p2(-1.0, -0.5), p2(1.25, -0.5), p2(1.0, 0.75), p2(-1.0, 0.5)];
+    let plane = PlaneShape::new(outline, Vec::new()).unwrap();
+    let pose = Pose {
+        rotation: UnitQuaternion::from_euler_angles(0.4, -0.7, 1.1),
+        translation: Vector3::new(0.3, -0.2, 0.1),
+        scale: 2.5,
+    };
+    let shapes = [
+        Shape::Plane(plane),
+        Shape::Square { side: 0.8 },
+        Shape::Disk { diameter: 0.6 },
+        Shape::Sphere { diameter: 0.5 },
+        Shape::Cylinder {
+            length: 1.0,
+            radius: 0.2,
+        },
+    ];
+    let mut ruled_out = [0usize; 2];
+    for shape in shapes {
+        let flat = matches!(
+            shape,
+            Shape::Plane(_) | Shape::Square { .. } | Shape::Disk { .. }
+        );
+        let p = Primitive::new(shape, pose);
+        for i in 0..1000 {
+            let t = i as f64;
+            let q = Point3::new(
+                3.0 * (t * 0.37).sin(),
+                3.0 * (t * 0.71).cos(),
+                3.0 * (t * 0.13).sin(),
+            );
+            let d = p.distance(&q);
+            for bound in [0.0, 0.5 * d, d, 1.5 * d, f64::INFINITY] {
+                match p.distance_within(&q, bound) {
+                    Some(got) => assert_eq!(got.to_bits(), d.to_bits()),
+                    None => {
+                        assert!(d > bound, "{q} at {d} ruled out by {bound}");
+                        ruled_out[usize::from(flat)] += 1;
+                    }
+                }
+            }
+        }
+    }
+    // Flat shapes are ruled out by their height; the others always measured.
+    assert_eq!(ruled_out[0], 0);
+    assert!(ruled_out[1] > 1000, "{ruled_out:?}");
+}

@@ -324,8 +324,10 @@ struct RadiusClass {
 /// primitive does not widen every search. A query first takes, in each class, the
 /// primitive with the nearest centre (an upper bound `b` on the answer), then examines
 /// every primitive whose centre lies within `b + max_radius` of the point and whose
-/// bounding ball is nearer than the best distance so far. The result is exact, since
-/// `distance(p, surface) ≥ |p − centre| − bounding_radius`.
+/// bounding ball is nearer than the best distance so far, and measures a flat one only
+/// when its plane is nearer too ([`Primitive::distance_within`]). The result is exact,
+/// since `distance(p, surface) ≥ |p − centre| − bounding_radius`, and a flat surface's
+/// ≥ the distance to its plane.
 pub struct PrimitiveIndex<'a> {
     prims: &'a [Primitive],
     classes: Vec<RadiusClass>,
@@ -385,7 +387,10 @@ impl<'a> PrimitiveIndex<'a> {
     pub fn nearest_from(&self, p: &Point3<f64>, hint: Option<usize>) -> Option<(usize, f64)> {
         let mut best: Option<(usize, f64)> = None;
         let consider = |i: usize, best: &mut Option<(usize, f64)>| {
-            let d = self.prims[i].distance(p);
+            let bound = best.map_or(f64::INFINITY, |(_, bd)| bd);
+            let Some(d) = self.prims[i].distance_within(p, bound) else {
+                return;
+            };
             if best.is_none_or(|(bi, bd)| d < bd || (d == bd && i < bi)) {
                 *best = Some((i, d));
             }
