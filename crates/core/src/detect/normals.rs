@@ -5,15 +5,15 @@
 //! ([`crate::surface::pca_plane`]): the unit normal, the flatness ("curvature",
 //! `λ0 / Σλ`, Pauly et al. 2002) and the residual `√λ0` (scene units). Points are
 //! processed in parallel with rayon; each point's result depends on its neighbourhood
-//! only, so the output is the same for any thread count. On an even cloud of about a
-//! thousand points or more the neighbours come from a grid sized by a guessed radius,
-//! which finds the same neighbours as the kd-tree faster
+//! only, so the output is the same for any thread count. On a cloud of about a thousand
+//! points or more the neighbours come from grids sized by guessed radii (one on an even
+//! cloud, a few on an uneven one), which find the same neighbours as the kd-tree faster
 //! ([`crate::spatial::NeighbourSearch`]).
 
 use nalgebra::{Point3, Vector3};
 use rayon::prelude::*;
 
-use crate::spatial::{NeighbourSearch, PointIndex, kth_distance_guess};
+use crate::spatial::{NeighbourSearch, PointIndex, grid_radii};
 use crate::surface::pca_plane;
 
 /// The flatness given to a point whose neighbourhood is degenerate (all neighbours
@@ -54,8 +54,8 @@ impl Neighbourhoods {
             residual: vec![0.0; n],
             radius: vec![0.0; n],
         };
-        let guess = kth_distance_guess(points, index, k);
-        let search = NeighbourSearch::new(points, index, k, guess);
+        let radii = grid_radii(points, index, k);
+        let search = NeighbourSearch::new(points, index, k, &radii);
         (
             out.neighbours.par_chunks_mut(k),
             &mut out.normals,

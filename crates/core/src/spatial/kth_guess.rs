@@ -32,6 +32,12 @@ const KTH_DISTANCE_MARGIN: f64 = 1.1;
 const KTH_DISTANCE_LOW_QUANTILE: f64 = 0.1;
 const KTH_DISTANCE_MAX_SPREAD: f64 = 4.0;
 
+/// Most neighbour grids of an uneven cloud ([`grid_radii`]): their radii span
+/// `KTH_DISTANCE_MAX_SPREAD^(n−1)` = 64 in squared `k`-th distance, a density 64 times
+/// lower in the sparsest grid than in the finest (on a surface, 8 times the distance
+/// from a scanner); sparser points are searched in the kd-tree.
+const MAX_NEIGHBOUR_GRIDS: usize = 4;
+
 /// A squared radius that holds the `k` nearest neighbours of most of `points` (scene
 /// units²), or `None` for a small cloud, an uneven one, or one whose points have no `k`
 /// distinct neighbours.
@@ -40,13 +46,41 @@ pub(crate) fn kth_distance_guess(
     index: &PointIndex,
     k: usize,
 ) -> Option<f64> {
+    let [low, high] = kth_distance_spread(points, index, k)?;
+    (high <= KTH_DISTANCE_MAX_SPREAD * low).then(|| high * KTH_DISTANCE_MARGIN.powi(2))
+}
+
+/// The squared radii (ascending, scene units²) of the neighbour grids of `points`
+/// ([`super::NeighbourSearch`]): on an even cloud the one radius of
+/// [`kth_distance_guess`]; on an uneven one, radii [`KTH_DISTANCE_MAX_SPREAD`] times
+/// apart from the dense parts' `k`-th distance up to the sparse parts', at most
+/// [`MAX_NEIGHBOUR_GRIDS`] of them, so that each point finds its `k` nearest in a grid
+/// whose cells hold about `k` points around it. Empty for a small cloud.
+pub(crate) fn grid_radii(points: &[Point3<f64>], index: &PointIndex, k: usize) -> Vec<f64> {
+    let Some([low, high]) = kth_distance_spread(points, index, k) else {
+        return Vec::new();
+    };
+    let margin = KTH_DISTANCE_MARGIN.powi(2);
+    if high <= KTH_DISTANCE_MAX_SPREAD * low {
+        return vec![high * margin];
+    }
+    let mut radii = vec![low * margin];
+    while radii.len() < MAX_NEIGHBOUR_GRIDS && radii[radii.len() - 1] < high * margin {
+        radii.push(radii[radii.len() - 1] * KTH_DISTANCE_MAX_SPREAD);
+    }
+    radii
+}
+
+/// The [`KTH_DISTANCE_LOW_QUANTILE`] and [`KTH_DISTANCE_QUANTILE`] of the squared `k`-th
+/// neighbour distances of [`KTH_DISTANCE_PROBES`] points spread over `points`; `None`
+/// for a small cloud or one whose points have no `k` distinct neighbours.
+fn kth_distance_spread(points: &[Point3<f64>], index: &PointIndex, k: usize) -> Option<[f64; 2]> {
     if points.len() < KTH_DISTANCE_PROBES * KTH_DISTANCE_PROBE_STRIDE {
         return None;
     }
     let kth = |i: usize| index.nearest_n(&points[i], k).last().map(|h| h.1);
     let quantiles = [KTH_DISTANCE_LOW_QUANTILE, KTH_DISTANCE_QUANTILE];
-    let [low, high] = strided_quantiles(points.len(), KTH_DISTANCE_PROBES, quantiles, kth)?;
-    (high <= KTH_DISTANCE_MAX_SPREAD * low).then(|| high * KTH_DISTANCE_MARGIN.powi(2))
+    strided_quantiles(points.len(), KTH_DISTANCE_PROBES, quantiles, kth)
 }
 
 #[cfg(test)]
@@ -75,9 +109,24 @@ mod tests {
         assert!(area > 32.0 && area < 80.0, "{area}");
         let mut uneven = even.clone();
         uneven.extend((0..6400).map(|_| Point3::new(unit() * 0.1, unit() * 0.1, 0.0)));
-        let index = PointIndex::new(&uneven);
-        assert_eq!(kth_distance_guess(&uneven, &index, 32), None);
+        let uneven_index = PointIndex::new(&uneven);
+        assert_eq!(kth_distance_guess(&uneven, &uneven_index, 32), None);
         let small = &even[..1000];
         assert_eq!(kth_distance_guess(small, &PointIndex::new(small), 32), None);
+
+        // The grids: the one guessed radius on the even cloud; on the uneven one, radii
+        // four times apart from the dense patch's (32 nearest within about 4 mm, as
+        // 6 400 points on 1 dm² put them) towards the sparse square's, at most four:
+        // 64 times the dense patch's falls short of a density 100 times lower.
+        assert_eq!(grid_radii(&even, &index, 32), vec![r2]);
+        let radii = grid_radii(&uneven, &uneven_index, 32);
+        assert_eq!(radii.len(), MAX_NEIGHBOUR_GRIDS, "{radii:?}");
+        for pair in radii.windows(2) {
+            assert_eq!(pair[1], pair[0] * KTH_DISTANCE_MAX_SPREAD);
+        }
+        let dense_area = std::f64::consts::PI * radii[0] / (0.1f64 / 80.0).powi(2);
+        assert!(dense_area > 32.0 && dense_area < 80.0, "{dense_area}");
+        assert!(radii[3] < r2 && radii[3] * KTH_DISTANCE_MAX_SPREAD > r2, "{radii:?}");
+        assert!(grid_radii(small, &PointIndex::new(small), 32).is_empty());
     }
 }

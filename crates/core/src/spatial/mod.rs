@@ -20,7 +20,7 @@ mod box_tree;
 mod kth_guess;
 mod neighbour_grid;
 pub(crate) use box_tree::{BoxTree, Hint};
-pub(crate) use kth_guess::kth_distance_guess;
+pub(crate) use kth_guess::{grid_radii, kth_distance_guess};
 pub(crate) use neighbour_grid::NeighbourSearch;
 
 /// Squared distances to the nearest indexed point for runs of nearby queries: `hint`

@@ -2,13 +2,15 @@
 //! neighbourhoods of detection's normals ([`crate::detect`]).
 //!
 //! The grid's cells are a hair wider than a radius `r` that holds the `k` nearest of
-//! most points ([`super::kth_distance_guess`]), so every point within `r` of a point lies
-//! in the 3 × 3 × 3 cells around its own. The points are sorted by cell, so that the
+//! most points ([`super::grid_radii`]), so every point within `r` of a point lies
+//! in the 3 × 3 × 3 cells around its own. A cloud of uneven density (a scanner's near
+//! range against its far range) gets a few grids, each radius twice the last: a point
+//! is searched in the finest grid whose radius holds `k` points around it. The points are sorted by cell, so that the
 //! cells of one row along x are one contiguous run: a search measures nine runs of
 //! coordinates in straight loops, with no tree walk and no sorted best-`k` list kept as
 //! it goes (a kd-tree's k-nearest search keeps one). Where at least `k` points lie
-//! within `r` they are the exact `k` nearest; the few points where fewer do are
-//! searched in the kd-tree.
+//! within `r` they are the exact `k` nearest; the few points where fewer do in every
+//! grid are searched in the kd-tree.
 //!
 //! The answer is [`PointIndex::nearest_n`]'s, whatever the radius, the grid or the
 //! thread count: the exact `k` nearest by (squared distance, index), and where points
@@ -34,32 +36,42 @@ pub(crate) struct NeighbourSearch<'a> {
     points: &'a [Point3<f64>],
     index: &'a PointIndex,
     k: usize,
-    grid: Option<Grid>,
+    /// Finest first.
+    grids: Vec<Grid>,
+}
+
+/// What one grid says of a point's `k` nearest.
+enum GridAnswer {
+    /// Written out: at least `k` points lie within the radius, with no tie across the
+    /// `k`-th place.
+    Exact,
+    /// Fewer than `k` points within the radius: a coarser grid or the tree.
+    TooFew,
+    /// Points tie across the `k`-th place: the tree chooses among them.
+    Ties,
 }
 
 impl<'a> NeighbourSearch<'a> {
     /// The search for the `k` nearest of every point of `points` (indexed by `index`,
-    /// built over exactly these points), through a grid of cells `√r2` wide (`r2`: a
-    /// squared radius that holds the `k` nearest of most points, scene units²). Without
-    /// a usable radius (`None`, not positive, or a grid too fine for the cloud's extent)
-    /// every point is searched in `index`.
-    pub fn new(
-        points: &'a [Point3<f64>],
-        index: &'a PointIndex,
-        k: usize,
-        r2: Option<f64>,
-    ) -> Self {
+    /// built over exactly these points), through grids of cells `√r2` wide for each `r2`
+    /// of `radii` (ascending squared radii, scene units², each holding the `k` nearest of
+    /// some of the points). A radius that is not positive, or a grid too fine for the
+    /// cloud's extent, is skipped; without any grid every point is searched in `index`.
+    pub fn new(points: &'a [Point3<f64>], index: &'a PointIndex, k: usize, radii: &[f64]) -> Self {
         let k = k.min(points.len());
-        let grid = if k == 0 {
-            None
+        let grids = if k == 0 {
+            Vec::new()
         } else {
-            r2.and_then(|r2| Grid::new(points, r2))
+            radii
+                .iter()
+                .filter_map(|&r2| Grid::new(points, r2))
+                .collect()
         };
         NeighbourSearch {
             points,
             index,
             k,
-            grid,
+            grids,
         }
     }
 
@@ -68,10 +80,15 @@ impl<'a> NeighbourSearch<'a> {
     /// increasing (squared distance, index). `scratch` is reused across calls.
     pub fn nearest<'s>(&self, i: usize, scratch: &'s mut Vec<(u32, f64)>) -> &'s [(u32, f64)] {
         let q = as_array(&self.points[i]);
-        let found = self
-            .grid
-            .as_ref()
-            .is_some_and(|g| g.nearest(i, &q, self.k, scratch));
+        let mut found = false;
+        for grid in &self.grids {
+            match grid.nearest(i, &q, self.k, scratch) {
+                GridAnswer::Exact => found = true,
+                GridAnswer::TooFew => continue,
+                GridAnswer::Ties => {}
+            }
+            break;
+        }
         if !found {
             *scratch = self.index.nearest_n(&self.points[i], self.k);
         }
@@ -164,8 +181,9 @@ impl Grid {
     }
 
     /// Writes the `k` nearest of point `i` into `out` (sorted) when at least `k` points
-    /// lie within the radius (they are then its exact `k` nearest); false otherwise.
-    fn nearest(&self, i: usize, q: &[f64; 3], k: usize, out: &mut Vec<(u32, f64)>) -> bool {
+    /// lie within the radius (they are then its exact `k` nearest) and none ties across
+    /// the `k`-th place.
+    fn nearest(&self, i: usize, q: &[f64; 3], k: usize, out: &mut Vec<(u32, f64)>) -> GridAnswer {
         let c = self.cell_of[i] as usize;
         let ranges =
             &self.around[self.around_starts[c] as usize..self.around_starts[c + 1] as usize];
@@ -185,9 +203,12 @@ impl Grid {
         }
         out.truncate(len);
         if out.len() < k {
-            return false;
+            GridAnswer::TooFew
+        } else if keep_k_nearest(out, k) {
+            GridAnswer::Exact
+        } else {
+            GridAnswer::Ties
         }
-        keep_k_nearest(out, k)
     }
 }
 
@@ -284,9 +305,9 @@ mod tests {
         pts: &[Point3<f64>],
         index: &PointIndex,
         k: usize,
-        r2: Option<f64>,
+        radii: &[f64],
     ) -> Vec<(u32, f64)> {
-        let search = NeighbourSearch::new(pts, index, k, r2);
+        let search = NeighbourSearch::new(pts, index, k, radii);
         let mut scratch = Vec::new();
         (0..pts.len())
             .flat_map(|i| search.nearest(i, &mut scratch).to_vec())
@@ -299,8 +320,16 @@ mod tests {
     }
 
     /// No radius (the tree alone), radii far too small, about right, and larger than the
-    /// cloud.
-    const RADII: [Option<f64>; 5] = [None, Some(1e-6), Some(0.003), Some(0.02), Some(1e4)];
+    /// cloud, alone and as the grids of an uneven cloud.
+    const RADII: [&[f64]; 7] = [
+        &[],
+        &[1e-6],
+        &[0.003],
+        &[0.02],
+        &[1e4],
+        &[1e-6, 0.003, 0.02],
+        &[0.0005, 0.002, 0.008, 0.032],
+    ];
 
     /// Asserts that the search gives `truth(k)` for every `k` and radius.
     fn assert_every_radius(
@@ -310,9 +339,9 @@ mod tests {
         let index = PointIndex::new(pts);
         for k in [1, 8, 32] {
             let expected = truth(&index, k);
-            for r2 in RADII {
-                let rows = neighbour_table(pts, &index, k, r2);
-                assert_eq!(rows, expected, "k {k}, r2 {r2:?}");
+            for radii in RADII {
+                let rows = neighbour_table(pts, &index, k, radii);
+                assert_eq!(rows, expected, "k {k}, radii {radii:?}");
             }
         }
     }
@@ -335,12 +364,12 @@ mod tests {
     fn the_search_is_the_same_on_any_thread_count() {
         let pts = uneven_cloud(5, true);
         let index = PointIndex::new(&pts);
-        let all = neighbour_table(&pts, &index, 16, Some(0.004));
+        let all = neighbour_table(&pts, &index, 16, &[0.004]);
         let pool = rayon::ThreadPoolBuilder::new()
             .num_threads(1)
             .build()
             .unwrap();
-        let one = pool.install(|| neighbour_table(&pts, &index, 16, Some(0.004)));
+        let one = pool.install(|| neighbour_table(&pts, &index, 16, &[0.004]));
         assert_eq!(all, one);
     }
 
@@ -348,14 +377,14 @@ mod tests {
     fn small_and_degenerate_clouds() {
         let one = vec![Point3::new(1.0, 2.0, 3.0)];
         let index = PointIndex::new(&one);
-        let rows = neighbour_table(&one, &index, 32, Some(0.01));
+        let rows = neighbour_table(&one, &index, 32, &[0.01]);
         assert_eq!(rows, vec![(0, 0.0)]);
         // All points coincide: a grid of one cell, every distance 0, all tied.
         let same = vec![Point3::new(0.5, 0.5, 0.5); 5];
         let index = PointIndex::new(&same);
-        let rows = neighbour_table(&same, &index, 3, Some(0.01));
+        let rows = neighbour_table(&same, &index, 3, &[0.01]);
         assert_eq!(rows, tree_table(&same, &index, 3));
         let empty: Vec<Point3<f64>> = Vec::new();
-        assert!(neighbour_table(&empty, &PointIndex::new(&empty), 8, Some(1.0)).is_empty());
+        assert!(neighbour_table(&empty, &PointIndex::new(&empty), 8, &[1.0]).is_empty());
     }
 }
