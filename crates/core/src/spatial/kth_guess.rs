@@ -126,7 +126,10 @@ mod tests {
         }
         let dense_area = std::f64::consts::PI * radii[0] / (0.1f64 / 80.0).powi(2);
         assert!(dense_area > 32.0 && dense_area < 80.0, "{dense_area}");
-        assert!(radii[3] < r2 && radii[3] * KTH_DISTANCE_MAX_SPREAD > r2, "{radii:?}");
+        assert!(
+            radii[3] < r2 && radii[3] * KTH_DISTANCE_MAX_SPREAD > r2,
+            "{radii:?}"
+        );
         assert!(grid_radii(small, &PointIndex::new(small), 32).is_empty());
     }
 }

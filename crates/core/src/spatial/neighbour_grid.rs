@@ -2,10 +2,11 @@
 //! neighbourhoods of detection's normals ([`crate::detect`]).
 //!
 //! The grid's cells are a hair wider than a radius `r` that holds the `k` nearest of
-//! most points ([`super::grid_radii`]), so every point within `r` of a point lies
-//! in the 3 × 3 × 3 cells around its own. A cloud of uneven density (a scanner's near
-//! range against its far range) gets a few grids, each radius twice the last: a point
-//! is searched in the finest grid whose radius holds `k` points around it. The points are sorted by cell, so that the
+//! most points ([`super::grid_radii`]), so every point within `r` of a point lies in
+//! the 3 × 3 × 3 cells around its own. A cloud of uneven density (a scanner's near range
+//! against its far range) gets a few grids, each radius twice the last: a point is
+//! searched in the finest grid whose radius holds `k` points around it. The points are
+//! sorted by cell, so that the
 //! cells of one row along x are one contiguous run: a search measures nine runs of
 //! coordinates in straight loops, with no tree walk and no sorted best-`k` list kept as
 //! it goes (a kd-tree's k-nearest search keeps one). Where at least `k` points lie
@@ -80,16 +81,15 @@ impl<'a> NeighbourSearch<'a> {
     /// increasing (squared distance, index). `scratch` is reused across calls.
     pub fn nearest<'s>(&self, i: usize, scratch: &'s mut Vec<(u32, f64)>) -> &'s [(u32, f64)] {
         let q = as_array(&self.points[i]);
-        let mut found = false;
+        // The finest grid with `k` points within its radius answers, unless they tie.
+        let mut answer = GridAnswer::TooFew;
         for grid in &self.grids {
-            match grid.nearest(i, &q, self.k, scratch) {
-                GridAnswer::Exact => found = true,
-                GridAnswer::TooFew => continue,
-                GridAnswer::Ties => {}
+            answer = grid.nearest(i, &q, self.k, scratch);
+            if !matches!(answer, GridAnswer::TooFew) {
+                break;
             }
-            break;
         }
-        if !found {
+        if !matches!(answer, GridAnswer::Exact) {
             *scratch = self.index.nearest_n(&self.points[i], self.k);
         }
         &scratch[..self.k.min(scratch.len())]
